@@ -1,0 +1,76 @@
+"""Shared helpers for kernel modules: array conversion at the API boundary and ti.funcs.
+
+Public kernel wrappers accept numpy arrays or Taichi ndarrays owned by the caller. Numpy inputs
+are copied into ndarrays once, results come back as numpy; ndarray inputs stay on the device and
+results are returned as ndarrays, so an embedding pipeline never round-trips through the host.
+"""
+
+import numpy as np
+import taichi as ti
+
+_NP_TO_TI = {
+    np.dtype(np.float32): ti.f32,
+    np.dtype(np.int32): ti.i32,
+    np.dtype(np.uint32): ti.u32,
+    np.dtype(np.uint8): ti.u8,
+    np.dtype(np.int8): ti.i8,
+    np.dtype(np.uint16): ti.u16,
+    np.dtype(np.int64): ti.i64,
+    np.dtype(np.float64): ti.f64,
+}
+
+INT32_MAX = 2**31 - 1
+
+
+def is_ndarray(a) -> bool:
+    return isinstance(a, ti.lang._ndarray.Ndarray)
+
+
+def ndarray(dtype, shape):
+    """Allocate a Taichi ndarray (dtype given as numpy dtype or Taichi type)."""
+    if not isinstance(dtype, type(ti.f32)):
+        dtype = _NP_TO_TI[np.dtype(dtype)]
+    return ti.ndarray(dtype, shape)
+
+
+def as_ndarray(a, dtype=None):
+    """Return ``a`` as a Taichi ndarray: ndarrays pass through, numpy arrays are copied once."""
+    if is_ndarray(a):
+        return a
+    arr = np.ascontiguousarray(a, dtype=dtype)
+    if arr.size >= INT32_MAX:
+        raise ValueError(f"array of {arr.size} elements exceeds Taichi's 32-bit indexing; tile the input")
+    out = ndarray(arr.dtype, arr.shape)
+    out.from_numpy(arr)
+    return out
+
+
+def to_numpy(a):
+    return a.to_numpy() if is_ndarray(a) else np.asarray(a)
+
+
+def like_input(result, reference):
+    """Return ``result`` (an ndarray) as numpy when ``reference`` was numpy, else as is."""
+    return result if is_ndarray(reference) else result.to_numpy()
+
+
+def length(a) -> int:
+    return int(a.shape[0])
+
+
+@ti.func
+def f32_order_key(value: ti.f32) -> ti.i32:
+    """Order-preserving map float32 -> int32, so min/max reductions can use integer atomics
+    (deterministic, and portable to backends without float atomics)."""
+    bits = ti.bit_cast(value, ti.i32)
+    if bits < 0:
+        bits = bits ^ 0x7FFFFFFF
+    return bits
+
+
+@ti.func
+def f32_from_order_key(key: ti.i32) -> ti.f32:
+    bits = key
+    if bits < 0:
+        bits = bits ^ 0x7FFFFFFF
+    return ti.bit_cast(bits, ti.f32)

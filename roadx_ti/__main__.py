@@ -1,0 +1,3 @@
+from roadx_ti.cli import main
+
+raise SystemExit(main())

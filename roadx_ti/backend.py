@@ -1,0 +1,107 @@
+"""The only place that initialises Taichi.
+
+Everything version-specific about Taichi (how to ask whether it is initialised, which arch is in
+use, the names of archs) lives here, so that a move to a maintained fork of Taichi stays small.
+A host program that already called ``ti.init`` keeps its runtime: ``init`` then only reports it.
+"""
+from __future__ import annotations
+
+import glob
+import logging
+import os
+import sys
+
+import taichi as ti
+from taichi.lang import impl as _ti_impl
+
+log = logging.getLogger("roadx_ti.backend")
+
+CHOICES = ("auto", "cpu", "vulkan", "cuda", "metal")
+
+_ARCHS = {"cpu": ti.cpu, "vulkan": ti.vulkan, "cuda": ti.cuda, "metal": ti.metal}
+
+
+class BackendError(RuntimeError):
+    """The requested backend cannot be started on this machine."""
+
+
+def is_initialized() -> bool:
+    """True when a Taichi runtime exists (started by roadx_ti or by the host program)."""
+    return _ti_impl.get_runtime().prog is not None
+
+
+def current_arch() -> str:
+    """Name of the arch in use: 'cpu', 'vulkan', 'cuda', 'metal', ... ('' when not initialised)."""
+    if not is_initialized():
+        return ""
+    name = _ti_impl.current_cfg().arch.name
+    return "cpu" if name in ("x64", "arm64") else name
+
+
+def _hardware_gpu_present() -> bool:
+    # Mesa installs Vulkan ICDs for several vendors even where there is no such device, and its
+    # lavapipe driver runs Vulkan on the CPU, slower than Taichi's own CPU backend. A real GPU
+    # shows up as a DRM render node or an NVIDIA device node.
+    return bool(glob.glob("/dev/dri/renderD*") or os.path.exists("/dev/nvidia0"))
+
+
+def _auto_candidates() -> list[str]:
+    order = ["cuda"]
+    if sys.platform == "darwin":
+        order.append("metal")
+    elif _hardware_gpu_present():
+        order.append("vulkan")
+    order.append("cpu")
+    return order
+
+
+def init(backend: str = "auto", *, threads: int | None = None, debug: bool = False,
+         offline_cache: bool = True) -> str:
+    """Start Taichi on ``backend`` unless a runtime already exists; return the arch in use.
+
+    ``auto`` tries cuda, then metal (macOS) or vulkan (when a hardware GPU is present), then cpu.
+    A runtime started by a host program is used as is, whatever ``backend`` says.
+    """
+    if backend not in CHOICES:
+        raise BackendError(f"backend {backend!r} is not one of {', '.join(CHOICES)}")
+    if is_initialized():
+        arch = current_arch()
+        log.info("Taichi already initialised by the host: using arch %s", arch)
+        return arch
+    candidates = _auto_candidates() if backend == "auto" else [backend]
+    kwargs = dict(offline_cache=offline_cache, debug=debug, log_level=ti.WARN,
+                  default_ip=ti.i32, default_fp=ti.f32)
+    if threads:
+        kwargs["cpu_max_num_threads"] = int(threads)
+    for name in candidates:
+        try:
+            ti.init(arch=_ARCHS[name], **kwargs)
+        except Exception as exc:  # Taichi raises assorted types for missing drivers
+            log.debug("backend %s unavailable: %s", name, exc)
+            continue
+        arch = current_arch()
+        # Taichi silently falls back to the CPU when the requested GPU arch is missing.
+        if name != "cpu" and arch == "cpu":
+            ti.reset()
+            continue
+        log.info("Taichi started on arch %s", arch)
+        return arch
+    raise BackendError(f"backend {backend!r} is not available on this machine "
+                       f"(tried {', '.join(candidates)})")
+
+
+def reset() -> None:
+    """Tear the runtime down (tests switching arch use this; pipelines never do)."""
+    ti.reset()
+
+
+def available(name: str) -> bool:
+    """Whether ``name`` can be started here (starts and tears down a runtime when none exists)."""
+    if is_initialized():
+        return current_arch() == name
+    try:
+        init(name)
+    except BackendError:
+        return False
+    reset()
+    return True

@@ -1,0 +1,39 @@
+"""Shared fixtures: the Taichi backends the kernels are tested on, and the real data folder."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from roadx_ti import backend
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED_DATA = Path(os.environ.get("ROADX_TI_SHARED_DATA", REPO.parent / "shared" / "data"))
+
+# CI proves the GPU-style code path through Mesa's lavapipe (a CPU Vulkan driver): there a
+# missing Vulkan backend is a failure, not a skip.
+KERNEL_BACKENDS = [b for b in os.environ.get("ROADX_TI_TEST_BACKENDS", "cpu,vulkan").split(",") if b]
+
+
+@pytest.fixture(scope="session", params=KERNEL_BACKENDS)
+def ti_arch(request):
+    """Run the test on each kernel backend in turn; the runtime is shared by the whole session
+    per backend, so kernels compile once per backend."""
+    name = request.param
+    if backend.is_initialized() and backend.current_arch() != name:
+        backend.reset()
+    try:
+        arch = backend.init(name)
+    except backend.BackendError as exc:
+        if os.environ.get("CI") or os.environ.get("ROADX_TI_REQUIRE_BACKENDS"):
+            pytest.fail(f"backend {name} must be available here: {exc}")
+        pytest.skip(f"backend {name} not available: {exc}")
+    yield arch
+
+
+@pytest.fixture(scope="session")
+def shared_data():
+    if not SHARED_DATA.is_dir():
+        pytest.skip(f"real data folder {SHARED_DATA} is absent")
+    return SHARED_DATA
