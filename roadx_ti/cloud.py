@@ -1,0 +1,90 @@
+"""Cloud: the point cloud as a struct of arrays with a float64 local origin.
+
+Kernels see ``xyz`` only: float32 coordinates relative to ``origin`` (float64), so that LAS
+coordinates of 10^5..10^7 m keep centimetre detail in float32 math. Writers never rebuild
+coordinates from ``xyz``: a cloud read from LAS keeps its ``las`` record and is written back from
+it bit for bit, with only the classification and the result dimensions changed.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+
+@dataclass
+class Cloud:
+    xyz: np.ndarray                         # (n, 3) float32, world - origin
+    origin: np.ndarray                      # (3,) float64
+    rgb: np.ndarray | None = None           # (n, 3) uint16, as stored in the file
+    color_depth: int = 0                    # 8 or 16 when rgb is set, 0 without colour
+    intensity: np.ndarray | None = None     # (n,) uint16
+    classification: np.ndarray | None = None  # (n,) uint8: input classes (truth in tests)
+    attributes: dict = field(default_factory=dict)  # other per-point arrays (non-LAS formats)
+    las: object | None = None               # laspy.LasData this cloud came from, if any
+    source: str = ""                        # path or description, for messages
+
+    def __post_init__(self):
+        self.xyz = np.ascontiguousarray(self.xyz, dtype=np.float32)
+        self.origin = np.asarray(self.origin, dtype=np.float64).reshape(3)
+        if self.xyz.ndim != 2 or self.xyz.shape[1] != 3:
+            raise ValueError("xyz must have shape (n, 3)")
+        n = len(self.xyz)
+        for name in ("rgb", "intensity", "classification"):
+            a = getattr(self, name)
+            if a is not None and len(a) != n:
+                raise ValueError(f"{name} has {len(a)} rows for {n} points")
+        if self.rgb is not None and self.color_depth not in (8, 16):
+            self.color_depth = detect_color_depth(self.rgb)
+
+    @property
+    def n(self) -> int:
+        return int(self.xyz.shape[0])
+
+    def __len__(self) -> int:
+        return self.n
+
+    @property
+    def has_color(self) -> bool:
+        return self.rgb is not None
+
+    def rgb8(self) -> np.ndarray | None:
+        """Colour as float32 in 0..255 whatever the stored depth (thresholds are in 8-bit units)."""
+        if self.rgb is None:
+            return None
+        rgb = self.rgb.astype(np.float32)
+        if self.color_depth == 16:
+            rgb /= 257.0
+        return rgb
+
+    def world_xyz(self) -> np.ndarray:
+        """float64 world coordinates (exact for LAS input: taken from the scaled integers)."""
+        if self.las is not None:
+            return np.column_stack([np.asarray(self.las.x), np.asarray(self.las.y),
+                                    np.asarray(self.las.z)]).astype(np.float64)
+        return self.xyz.astype(np.float64) + self.origin
+
+    def subset(self, index: np.ndarray) -> "Cloud":
+        """A new cloud of the points selected by ``index`` (bool mask or integer indices).
+        The LAS record is not carried: a subset is for processing, the full cloud is written."""
+        def pick(a):
+            return None if a is None else a[index]
+        return replace(self, xyz=self.xyz[index], rgb=pick(self.rgb), intensity=pick(self.intensity),
+                       classification=pick(self.classification),
+                       attributes={k: v[index] for k, v in self.attributes.items()}, las=None)
+
+    @classmethod
+    def from_world(cls, xyz_world: np.ndarray, origin: np.ndarray | None = None, **kw) -> "Cloud":
+        """Build a cloud from float64 world coordinates, choosing a local origin when not given
+        (the floor of the minimum corner, so local coordinates are small and non-negative)."""
+        xyz_world = np.asarray(xyz_world, dtype=np.float64)
+        if origin is None:
+            origin = np.floor(xyz_world.min(axis=0)) if len(xyz_world) else np.zeros(3)
+        local = (xyz_world - origin).astype(np.float32)
+        return cls(xyz=local, origin=origin, **kw)
+
+
+def detect_color_depth(rgb: np.ndarray) -> int:
+    """8 when every channel fits in a byte, else 16 (LAS stores 16-bit, many writers scale 8-bit
+    values by 256 or 257, others store them raw)."""
+    return 16 if rgb.size and int(rgb.max()) > 255 else 8

@@ -1,0 +1,1 @@
+"""Pipeline stages: one module per method step (options with defaults, units, validation; run)."""
