@@ -6,6 +6,7 @@ A host program that already called ``ti.init`` keeps its runtime: ``init`` then 
 """
 from __future__ import annotations
 
+import contextlib
 import glob
 import logging
 import os
@@ -75,7 +76,9 @@ def init(backend: str = "auto", *, threads: int | None = None, debug: bool = Fal
         kwargs["cpu_max_num_threads"] = int(threads)
     for name in candidates:
         try:
-            ti.init(arch=_ARCHS[name], **kwargs)
+            # ti.init prints the arch to stdout; stdout belongs to the CLI's results
+            with contextlib.redirect_stdout(sys.stderr):
+                ti.init(arch=_ARCHS[name], **kwargs)
         except Exception as exc:  # Taichi raises assorted types for missing drivers
             log.debug("backend %s unavailable: %s", name, exc)
             continue

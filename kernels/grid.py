@@ -1,0 +1,286 @@
+"""Sparse voxel hashing: cell coordinates, bucket counting sort, voxel downsampling.
+
+A point's cell is ``floor((p - origin) / cell_size)`` per axis (int32). Cells are hashed into a
+power-of-two table of about twice the point count, so memory grows with the point count, never
+with the bounding-box volume. Point indices are counting-sorted by bucket (integer-atomic
+histogram, ``scan.exclusive_scan_into``, atomic scatter); each bucket is then sorted by
+(cell, point index), which makes the order independent of thread timing and puts each cell's
+points in one contiguous run. A lookup hashes the cell, takes the bucket's range and skips points
+of other cells that share the bucket (hash collisions). Taichi has no atomic compare-and-swap, so
+an open-addressing table is not an option; the bucket sort needs none.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import taichi as ti
+
+from .common import INT32_MAX, as_ndarray, f32_order_key, is_ndarray, length, ndarray
+from .scan import exclusive_scan_into
+
+# Large primes of the classic spatial hash (Teschner et al. 2003).
+_P1, _P2, _P3 = 73856093, 19349663, 83492791
+_MAX_CELL_COORD = 2**30
+
+
+@dataclass
+class Grid:
+    """A sparse cell index over one point set (all arrays are Taichi ndarrays)."""
+    n: int
+    cell_size: float
+    inv_cell: float            # float32(1 / cell_size): every kernel uses this exact value
+    origin: tuple              # float32 x, y, z of the grid corner (the bounding-box minimum)
+    table_mask: int            # table size - 1 (table size is a power of two)
+    order: object              # (n,) i32: point indices sorted by (bucket, cell, index)
+    bucket_start: object       # (table+1,) i32: bucket b holds order[bucket_start[b]:bucket_start[b+1]]
+    sorted_xyz: object         # (n, 3) f32: xyz[order]
+    sorted_cell: object        # (n, 3) i32: cell coordinates of xyz[order]
+    extent: tuple              # float32 bounding-box size x, y, z
+
+    @property
+    def table_size(self) -> int:
+        return self.table_mask + 1
+
+
+@ti.func
+def cell_of(x: ti.f32, y: ti.f32, z: ti.f32, ox: ti.f32, oy: ti.f32, oz: ti.f32,
+            inv_cell: ti.f32) -> ti.math.ivec3:
+    """Cell of a point; the single definition every kernel uses, so all agree bit for bit."""
+    return ti.math.ivec3(ti.cast(ti.floor((x - ox) * inv_cell), ti.i32),
+                         ti.cast(ti.floor((y - oy) * inv_cell), ti.i32),
+                         ti.cast(ti.floor((z - oz) * inv_cell), ti.i32))
+
+
+@ti.func
+def cell_hash(c: ti.math.ivec3, mask: ti.i32) -> ti.i32:
+    h = (ti.cast(c[0], ti.u32) * ti.u32(_P1)) ^ (ti.cast(c[1], ti.u32) * ti.u32(_P2)) \
+        ^ (ti.cast(c[2], ti.u32) * ti.u32(_P3))
+    return ti.cast(h & ti.cast(mask, ti.u32), ti.i32)
+
+
+@ti.func
+def cell_less(a: ti.math.ivec3, ia: ti.i32, b: ti.math.ivec3, ib: ti.i32) -> ti.i32:
+    """Lexicographic (cell, index) order."""
+    less = 0
+    if a[0] != b[0]:
+        less = ti.cast(a[0] < b[0], ti.i32)
+    elif a[1] != b[1]:
+        less = ti.cast(a[1] < b[1], ti.i32)
+    elif a[2] != b[2]:
+        less = ti.cast(a[2] < b[2], ti.i32)
+    else:
+        less = ti.cast(ia < ib, ti.i32)
+    return less
+
+
+@ti.kernel
+def _bounds(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), lo_key: ti.types.ndarray(dtype=ti.i32, ndim=1),
+            hi_key: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in range(xyz.shape[0]):
+        for a in ti.static(range(3)):
+            key = f32_order_key(xyz[i, a])
+            ti.atomic_min(lo_key[a], key)
+            ti.atomic_max(hi_key[a], key)
+
+
+@ti.kernel
+def _assign_cells(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                  bucket: ti.types.ndarray(dtype=ti.i32, ndim=1), count: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                  ox: ti.f32, oy: ti.f32, oz: ti.f32, inv_cell: ti.f32, mask: ti.i32):
+    for i in range(xyz.shape[0]):
+        c = cell_of(xyz[i, 0], xyz[i, 1], xyz[i, 2], ox, oy, oz, inv_cell)
+        for a in ti.static(range(3)):
+            cell[i, a] = c[a]
+        b = cell_hash(c, mask)
+        bucket[i] = b
+        ti.atomic_add(count[b], 1)
+
+
+@ti.kernel
+def _scatter(bucket: ti.types.ndarray(dtype=ti.i32, ndim=1), start: ti.types.ndarray(dtype=ti.i32, ndim=1),
+             cursor: ti.types.ndarray(dtype=ti.i32, ndim=1), order: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in range(bucket.shape[0]):
+        b = bucket[i]
+        order[start[b] + ti.atomic_add(cursor[b], 1)] = i
+
+
+@ti.kernel
+def _sort_buckets(start: ti.types.ndarray(dtype=ti.i32, ndim=1), order: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                  cell: ti.types.ndarray(dtype=ti.i32, ndim=2), n_buckets: ti.i32):
+    # Shell sort of each bucket by (cell, index): in place, O(m^1.3), fine for the occasional
+    # bucket of thousands (duplicated points, coarse voxels).
+    for b in range(n_buckets):
+        lo = start[b]
+        m = start[b + 1] - lo
+        gap = 1
+        while gap * 3 + 1 < m:
+            gap = gap * 3 + 1
+        while gap >= 1:
+            for i in range(lo + gap, lo + m):
+                v = order[i]
+                cv = ti.math.ivec3(cell[v, 0], cell[v, 1], cell[v, 2])
+                j = i
+                while j >= lo + gap:
+                    u = order[j - gap]
+                    cu = ti.math.ivec3(cell[u, 0], cell[u, 1], cell[u, 2])
+                    if cell_less(cv, v, cu, u):
+                        order[j] = u
+                        j -= gap
+                    else:
+                        break
+                order[j] = v
+            gap = gap // 3
+
+
+@ti.kernel
+def _gather(order: ti.types.ndarray(dtype=ti.i32, ndim=1), xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
+            cell: ti.types.ndarray(dtype=ti.i32, ndim=2), sorted_xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
+            sorted_cell: ti.types.ndarray(dtype=ti.i32, ndim=2)):
+    for s in range(order.shape[0]):
+        i = order[s]
+        for a in ti.static(range(3)):
+            sorted_xyz[s, a] = xyz[i, a]
+            sorted_cell[s, a] = cell[i, a]
+
+
+def bounding_box(xyz):
+    """(min, max) float32 corners of an (n, 3) float32 ndarray, reduced on the device."""
+    lo = ndarray(ti.i32, (3,))
+    hi = ndarray(ti.i32, (3,))
+    lo.from_numpy(np.full(3, INT32_MAX, np.int32))
+    hi.from_numpy(np.full(3, -INT32_MAX - 1, np.int32))
+    _bounds(xyz, lo, hi)
+
+    def decode(keys):
+        bits = keys.to_numpy()
+        bits = np.where(bits < 0, bits ^ 0x7FFFFFFF, bits).astype(np.int32)
+        return bits.view(np.float32)
+    return decode(lo), decode(hi)
+
+
+def auto_cell_size(extent, n: int, points_per_cell: float) -> float:
+    """Cell edge such that a cell holds about ``points_per_cell`` points on a surface-like cloud
+    (density taken over the two largest bounding-box extents)."""
+    e = np.sort(np.asarray(extent, np.float64))[::-1]
+    if n <= 0 or e[0] <= 0:
+        return 1.0
+    area = e[0] * max(e[1], e[0] * 1e-6)
+    size = math.sqrt(points_per_cell * area / n)
+    # never so small that the cell coordinates of the extent overflow
+    return max(size, float(e[0]) / 2**28, 1e-6)
+
+
+def _check_xyz(xyz):
+    if len(xyz.shape) != 2 or int(xyz.shape[1]) != 3:
+        raise ValueError(f"xyz must have shape (n, 3), got {tuple(xyz.shape)}")
+
+
+def build_grid(xyz, cell_size=None, *, points_per_cell: float = 8.0) -> Grid:
+    """Sparse hashed grid over ``xyz`` (n, 3) float32 (numpy or Taichi ndarray).
+
+    ``cell_size`` None picks one from the point density (``auto_cell_size``)."""
+    _check_xyz(xyz)
+    pts = as_ndarray(xyz, np.float32)
+    n = length(pts)
+    lo, hi = bounding_box(pts) if n else (np.zeros(3, np.float32), np.zeros(3, np.float32))
+    extent = (hi - lo).astype(np.float32)
+    if not np.all(np.isfinite(extent)):
+        raise ValueError("xyz holds non-finite coordinates")
+    if cell_size is None:
+        cell_size = auto_cell_size(extent, n, points_per_cell)
+    cell_size = float(cell_size)
+    if not cell_size > 0:
+        raise ValueError(f"cell_size must be > 0, got {cell_size}")
+    inv_cell = np.float32(1.0 / cell_size)
+    if float(extent.max(initial=0.0)) * float(inv_cell) >= _MAX_CELL_COORD:
+        raise ValueError(f"cell_size {cell_size} is too small for an extent of {extent.max()} "
+                         f"(cell coordinates would overflow int32)")
+    table = 1 << max(4, int(math.ceil(math.log2(max(2 * n, 1)))))
+    mask = table - 1
+    ox, oy, oz = (float(v) for v in lo)
+    cell = ndarray(ti.i32, (max(n, 1), 3))
+    bucket = ndarray(ti.i32, (max(n, 1),))
+    count = ndarray(ti.i32, (table + 1,))   # zero-initialised; the extra slot makes start[table] = n
+    start = ndarray(ti.i32, (table + 1,))
+    order = ndarray(ti.i32, (n,))
+    sorted_xyz = ndarray(ti.f32, (n, 3))
+    sorted_cell = ndarray(ti.i32, (n, 3))
+    if n:
+        _assign_cells(pts, cell, bucket, count, ox, oy, oz, float(inv_cell), mask)
+        exclusive_scan_into(count, start)
+        cursor = ndarray(ti.i32, (table,))
+        _scatter(bucket, start, cursor, order)
+        _sort_buckets(start, order, cell, table)
+        _gather(order, pts, cell, sorted_xyz, sorted_cell)
+    return Grid(n=n, cell_size=cell_size, inv_cell=float(inv_cell), origin=(ox, oy, oz),
+                table_mask=mask, order=order, bucket_start=start, sorted_xyz=sorted_xyz,
+                sorted_cell=sorted_cell, extent=tuple(float(v) for v in extent))
+
+
+# ---------------------------------------------------------------- voxel downsampling
+
+@ti.kernel
+def _voxel_pick(sorted_xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), sorted_cell: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                order: ti.types.ndarray(dtype=ti.i32, ndim=1), keep: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    # The first point of each cell run (runs are contiguous: buckets are sorted by cell) walks
+    # its run twice in a fixed order: centroid (as offsets from the first point, for precision),
+    # then the member nearest to it, ties to the lower index.
+    n = sorted_xyz.shape[0]
+    for s in range(n):
+        c = ti.math.ivec3(sorted_cell[s, 0], sorted_cell[s, 1], sorted_cell[s, 2])
+        first = 1
+        if s > 0:
+            if sorted_cell[s - 1, 0] == c[0] and sorted_cell[s - 1, 1] == c[1] and sorted_cell[s - 1, 2] == c[2]:
+                first = 0
+        if first:
+            p0 = ti.math.vec3(sorted_xyz[s, 0], sorted_xyz[s, 1], sorted_xyz[s, 2])
+            total = ti.math.vec3(0.0)
+            e = s
+            while e < n:
+                if sorted_cell[e, 0] != c[0] or sorted_cell[e, 1] != c[1] or sorted_cell[e, 2] != c[2]:
+                    break
+                total += ti.math.vec3(sorted_xyz[e, 0], sorted_xyz[e, 1], sorted_xyz[e, 2]) - p0
+                e += 1
+            centre = total / ti.cast(e - s, ti.f32)
+            best = s
+            best_d2 = ti.math.inf
+            for t in range(s, e):
+                d = ti.math.vec3(sorted_xyz[t, 0], sorted_xyz[t, 1], sorted_xyz[t, 2]) - p0 - centre
+                d2 = d.dot(d)
+                # members are sorted by index within the run, so strict < keeps the lower index
+                if d2 < best_d2:
+                    best_d2 = d2
+                    best = t
+            keep[order[best]] = 1
+
+
+@ti.kernel
+def _compact(mask: ti.types.ndarray(dtype=ti.i32, ndim=1), prefix: ti.types.ndarray(dtype=ti.i32, ndim=1),
+             out: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in range(mask.shape[0]):
+        if mask[i] != 0:
+            out[prefix[i]] = i
+
+
+def mask_to_indices(mask):
+    """Ascending indices of the non-zero entries of an int32 ndarray mask (stays on the device)."""
+    n = length(mask)
+    prefix = ndarray(ti.i32, (max(n, 1),))
+    total = exclusive_scan_into(mask, prefix) if n else 0
+    out = ndarray(ti.i32, (total,))
+    if total:
+        _compact(mask, prefix, out)
+    return out
+
+
+def voxel_downsample(xyz, voxel_size: float):
+    """Indices (ascending, int32) of one real point per occupied voxel of edge ``voxel_size``:
+    the point nearest the voxel's centroid, ties to the lower index. Voxels are
+    ``floor((p - bbox_min) / voxel_size)``. Returns numpy for numpy input, an ndarray otherwise."""
+    grid = build_grid(xyz, voxel_size)
+    keep = ndarray(ti.i32, (max(grid.n, 1),))
+    if grid.n:
+        _voxel_pick(grid.sorted_xyz, grid.sorted_cell, grid.order, keep)
+    idx = mask_to_indices(keep) if grid.n else ndarray(ti.i32, (0,))
+    return idx if is_ndarray(xyz) else idx.to_numpy()

@@ -1,0 +1,515 @@
+"""Exact k nearest neighbours and radius search over a hashed grid (``grid.build_grid``).
+
+Every query scans the cube of cells within Chebyshev ring L of its own cell. All points closer
+than the cube's *safe radius* s(L) = (L + distance from the query to its cell's faces) * cell_size
+lie inside the cube, so once the k-th candidate is closer than s(L) the answer is exact;
+otherwise the cube grows by one ring. Far from everything (outliers), once the cube would hold
+more cells than a brute scan costs, the query scans all points instead.
+
+Neighbours are ordered by (squared distance, point index): ties break by index, so results are
+deterministic whatever the scan order.
+
+Two selection strategies share one scan loop:
+* k <= SMALL_K: a per-thread max-heap of SMALL_K slots, one pass (rings added incrementally).
+* larger k (SOR uses k = 500): selection by counting, with no per-thread array of k slots.
+  Count passes fix the ring L; radix passes over the float bits of the squared distance
+  (32-bin histograms, 5 bits a pass, in registers) narrow the bin holding the k-th candidate
+  until at most SMALL_K candidates remain in it, which are then sorted in registers. Exact ties
+  of the k-th distance are split by a second radix selection over point indices. A final pass
+  emits the k neighbours (or just sums their distances, for ``knn_mean_distance``).
+"""
+
+import numpy as np
+import taichi as ti
+
+from .common import as_ndarray, is_ndarray, length, like_input, ndarray
+from .grid import Grid, build_grid, cell_hash
+from .scan import exclusive_scan_into
+
+SMALL_K = 32
+MAX_K = 512
+_BINS = 32
+_BIN_BITS = 5
+_INF_KEY = 0x7F800000          # float bits of +inf: larger than any finite squared distance
+
+# scan modes
+_HEAP, _COUNT, _HIST, _COLLECT, _EMIT = 0, 1, 2, 3, 4
+
+
+@ti.func
+def _pair_less(ka: ti.i32, ia: ti.i32, kb: ti.i32, ib: ti.i32) -> ti.i32:
+    return ti.cast((ka < kb) or (ka == kb and ia < ib), ti.i32)
+
+
+@ti.func
+def _safe_r2(u: ti.math.vec3, c: ti.math.ivec3, ring: ti.i32, cell_size: ti.f32) -> ti.f32:
+    """Squared radius within which every point lies inside the cube of ``ring`` rings.
+
+    ``u`` is the query in cell units; the margin covers float32 rounding of the cell assignment
+    (relative to the coordinate magnitude)."""
+    frac = u - ti.cast(c, ti.f32)
+    b = ti.min(ti.min(frac, 1.0 - frac).min(), 1.0)
+    margin = (ti.abs(u).max() + 2.0) * 1e-6
+    r = (ti.cast(ring, ti.f32) + b - margin) * cell_size
+    r2 = 0.0
+    if r > 0:
+        r2 = r * r * (1.0 - 1e-6)
+    return r2
+
+
+@ti.kernel
+def _knn_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
+              scell: ti.types.ndarray(dtype=ti.i32, ndim=2), bstart: ti.types.ndarray(dtype=ti.i32, ndim=1),
+              mask: ti.i32, ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32, inv_cell: ti.f32,
+              k: ti.i32, brute_cells: ti.i32, self_slots: ti.i32,
+              out_idx: ti.types.ndarray(dtype=ti.i32, ndim=2), out_dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
+              out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.template()):
+    n = sxyz.shape[0]
+    for s in range(n):
+        qi = order[s]
+        q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
+        c = ti.math.ivec3(scell[s, 0], scell[s, 1], scell[s, 2])
+        u = (q - ti.math.vec3(ox, oy, oz)) * inv_cell
+
+        heap_key = ti.Vector([0] * SMALL_K, ti.i32)
+        heap_idx = ti.Vector([0] * SMALL_K, ti.i32)
+        hist = ti.Vector([0] * _BINS, ti.i32)
+        size = 0
+        mode = _HEAP
+        if k > SMALL_K:
+            mode = _COUNT
+        ring = 1
+        inner = -1              # rings <= inner were scanned already (heap mode grows by shells)
+        brute = 0
+        count = 0
+        # radix state: candidates with value in [lo, lo + (BINS << shift)) are binned
+        phase = 0               # 0: on the squared-distance bits, 1: on the index among ties
+        lo = 0
+        shift = 0
+        below = 0
+        rank = k                # 1-based rank of the wanted candidate in (key, index) order
+        t_key = 0
+        t_idx = 0
+        emitted = 0
+        dist_sum = 0.0
+        done = 0
+        while done == 0:
+            count = 0
+            for b in ti.static(range(_BINS)):
+                hist[b] = 0
+            s2 = _safe_r2(u, c, ring, cell_size)
+            span = 2 * ring + 1
+            n_cells = span * span * span
+            if brute:
+                n_cells = 1
+            for t in range(n_cells):
+                a = 0
+                e = n
+                d = ti.math.ivec3(t % span - ring, (t // span) % span - ring, t // (span * span) - ring)
+                target = c + d
+                if brute == 0:
+                    a = 0
+                    e = 0
+                    if ti.abs(d).max() > inner:
+                        h = cell_hash(target, mask)
+                        a = bstart[h]
+                        e = bstart[h + 1]
+                for j in range(a, e):
+                    cj = ti.math.ivec3(scell[j, 0], scell[j, 1], scell[j, 2])
+                    ok = order[j] != qi
+                    if brute:
+                        ok = ok and (ti.abs(cj - c).max() > inner or mode != _HEAP)
+                    else:
+                        ok = ok and cj[0] == target[0] and cj[1] == target[1] and cj[2] == target[2]
+                    if ok:
+                        p = ti.math.vec3(sxyz[j, 0], sxyz[j, 1], sxyz[j, 2]) - q
+                        d2 = p.dot(p)
+                        key = ti.bit_cast(d2, ti.i32)
+                        idx = order[j]
+                        if mode == _HEAP:
+                            if size < k:
+                                # sift up into the max-heap
+                                pos = size
+                                size += 1
+                                while pos > 0:
+                                    parent = (pos - 1) // 2
+                                    if _pair_less(heap_key[parent], heap_idx[parent], key, idx):
+                                        heap_key[pos] = heap_key[parent]
+                                        heap_idx[pos] = heap_idx[parent]
+                                        pos = parent
+                                    else:
+                                        break
+                                heap_key[pos] = key
+                                heap_idx[pos] = idx
+                            elif _pair_less(key, idx, heap_key[0], heap_idx[0]):
+                                # replace the root and sift down
+                                pos = 0
+                                while True:
+                                    child = 2 * pos + 1
+                                    if child >= k:
+                                        break
+                                    if child + 1 < k and _pair_less(heap_key[child], heap_idx[child],
+                                                                    heap_key[child + 1], heap_idx[child + 1]):
+                                        child += 1
+                                    if _pair_less(key, idx, heap_key[child], heap_idx[child]):
+                                        heap_key[pos] = heap_key[child]
+                                        heap_idx[pos] = heap_idx[child]
+                                        pos = child
+                                    else:
+                                        break
+                                heap_key[pos] = key
+                                heap_idx[pos] = idx
+                        elif mode == _COUNT:
+                            if d2 < s2 or brute:
+                                count += 1
+                        elif mode == _HIST or mode == _COLLECT:
+                            v = key
+                            valid = 1
+                            if phase == 1:
+                                v = idx
+                                valid = ti.cast(key == t_key, ti.i32)
+                            if valid and v >= lo:
+                                bin_ = (v - lo) >> shift
+                                if mode == _HIST:
+                                    if bin_ < _BINS:
+                                        hist[bin_] += 1
+                                elif bin_ == 0 and size < SMALL_K:
+                                    heap_key[size] = key
+                                    heap_idx[size] = idx
+                                    size += 1
+                        else:  # _EMIT
+                            if _pair_less(key, idx, t_key, t_idx) or (key == t_key and idx == t_idx):
+                                if ti.static(emit_rows):
+                                    out_idx[qi, emitted] = idx
+                                    out_dist[qi, emitted] = d2
+                                else:
+                                    dist_sum += ti.sqrt(d2)
+                                emitted += 1
+
+            # ---- what the pass found decides the next one
+            if mode == _HEAP:
+                if brute or (size == k and ti.bit_cast(heap_key[0], ti.f32) < s2):
+                    # heap sort in place: ascending (key, index)
+                    end = size - 1
+                    while end > 0:
+                        tk = heap_key[0]
+                        tx = heap_idx[0]
+                        heap_key[0] = heap_key[end]
+                        heap_idx[0] = heap_idx[end]
+                        heap_key[end] = tk
+                        heap_idx[end] = tx
+                        pos = 0
+                        while True:
+                            child = 2 * pos + 1
+                            if child >= end:
+                                break
+                            if child + 1 < end and _pair_less(heap_key[child], heap_idx[child],
+                                                              heap_key[child + 1], heap_idx[child + 1]):
+                                child += 1
+                            if _pair_less(heap_key[pos], heap_idx[pos], heap_key[child], heap_idx[child]):
+                                tk = heap_key[pos]
+                                tx = heap_idx[pos]
+                                heap_key[pos] = heap_key[child]
+                                heap_idx[pos] = heap_idx[child]
+                                heap_key[child] = tk
+                                heap_idx[child] = tx
+                                pos = child
+                            else:
+                                break
+                        end -= 1
+                    for r in range(k):
+                        d2 = ti.bit_cast(heap_key[r], ti.f32)
+                        if ti.static(emit_rows):
+                            out_idx[qi, r] = heap_idx[r]
+                            out_dist[qi, r] = ti.sqrt(d2)
+                        else:
+                            dist_sum += ti.sqrt(d2)
+                    done = 1
+                else:
+                    inner = ring
+                    if (2 * ring + 3) * (2 * ring + 3) * (2 * ring + 3) > brute_cells:
+                        brute = 1
+                    else:
+                        ring += 1
+            elif mode == _COUNT:
+                if count >= k or brute:
+                    mode = _HIST
+                    hi = _INF_KEY
+                    if brute == 0:
+                        hi = ti.bit_cast(s2, ti.i32)
+                    while (hi >> shift) >= _BINS:
+                        shift += 1
+                elif (2 * ring + 3) * (2 * ring + 3) * (2 * ring + 3) > brute_cells:
+                    brute = 1
+                else:
+                    ring += 1
+            elif mode == _HIST:
+                cum = below
+                chosen = _BINS - 1
+                for b in range(_BINS):
+                    if cum + hist[b] >= rank:
+                        chosen = b
+                        break
+                    cum += hist[b]
+                below = cum
+                lo += chosen << shift
+                in_bin = hist[chosen]
+                if in_bin <= SMALL_K:
+                    mode = _COLLECT
+                    size = 0
+                elif shift == 0:
+                    if phase == 0:
+                        # in_bin candidates share the k-th squared distance: select by index
+                        t_key = lo
+                        phase = 1
+                        rank -= below
+                        below = 0
+                        lo = 0
+                        while (n >> shift) >= _BINS:
+                            shift += 1
+                    else:
+                        done = 1   # unreachable: indices are unique
+                else:
+                    shift = ti.max(shift - _BIN_BITS, 0)
+            elif mode == _COLLECT:
+                # insertion sort of the few candidates of the bin, then take the wanted rank
+                for a in range(1, size):
+                    tk = heap_key[a]
+                    tx = heap_idx[a]
+                    b = a
+                    while b > 0 and _pair_less(tk, tx, heap_key[b - 1], heap_idx[b - 1]):
+                        heap_key[b] = heap_key[b - 1]
+                        heap_idx[b] = heap_idx[b - 1]
+                        b -= 1
+                    heap_key[b] = tk
+                    heap_idx[b] = tx
+                r = rank - below - 1
+                t_key = heap_key[r]
+                t_idx = heap_idx[r]
+                mode = _EMIT
+            else:
+                done = 1
+                if ti.static(emit_rows):
+                    # heap sort of the emitted row in place (global memory), then distances
+                    m = emitted
+                    start = m // 2 - 1
+                    end = m - 1
+                    while end > 0:
+                        pos = 0
+                        if start >= 0:
+                            pos = start
+                            start -= 1
+                        else:
+                            tk = out_dist[qi, 0]
+                            tx = out_idx[qi, 0]
+                            out_dist[qi, 0] = out_dist[qi, end]
+                            out_idx[qi, 0] = out_idx[qi, end]
+                            out_dist[qi, end] = tk
+                            out_idx[qi, end] = tx
+                            end -= 1
+                        while True:
+                            child = 2 * pos + 1
+                            if child > end:
+                                break
+                            if child + 1 <= end and _pair_less(
+                                    ti.bit_cast(out_dist[qi, child], ti.i32), out_idx[qi, child],
+                                    ti.bit_cast(out_dist[qi, child + 1], ti.i32), out_idx[qi, child + 1]):
+                                child += 1
+                            if _pair_less(ti.bit_cast(out_dist[qi, pos], ti.i32), out_idx[qi, pos],
+                                          ti.bit_cast(out_dist[qi, child], ti.i32), out_idx[qi, child]):
+                                tk = out_dist[qi, pos]
+                                tx = out_idx[qi, pos]
+                                out_dist[qi, pos] = out_dist[qi, child]
+                                out_idx[qi, pos] = out_idx[qi, child]
+                                out_dist[qi, child] = tk
+                                out_idx[qi, child] = tx
+                                pos = child
+                            else:
+                                break
+                    for r in range(m):
+                        out_dist[qi, r] = ti.sqrt(out_dist[qi, r])
+        if ti.static(not emit_rows):
+            out_mean[qi] = dist_sum / ti.cast(k + self_slots, ti.f32)
+
+
+def _prepare(xyz, k, grid, cell_size, points_per_cell):
+    if grid is None:
+        grid = build_grid(xyz, cell_size, points_per_cell=points_per_cell)
+    elif grid.n != length(xyz):
+        raise ValueError(f"grid was built over {grid.n} points, xyz has {length(xyz)}")
+    return grid
+
+
+def _check_k(k, n):
+    k = int(k)
+    if not 1 <= k <= MAX_K:
+        raise ValueError(f"k must be in 1..{MAX_K}, got {k}")
+    if k >= n:
+        raise ValueError(f"k={k} neighbours need at least k+1 points (the point itself is excluded); "
+                         f"the cloud has {n}")
+    return k
+
+
+def _brute_cells(n: int) -> int:
+    # a cube of more cells than this costs more lookups than scanning every point
+    return max(125, n // 8)
+
+
+def _run_scan(grid: Grid, k: int, out_idx, out_dist, out_mean, emit_rows: bool, self_slots: int):
+    ox, oy, oz = grid.origin
+    _knn_scan(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, grid.table_mask,
+              ox, oy, oz, grid.cell_size, grid.inv_cell, k, _brute_cells(grid.n), self_slots,
+              out_idx, out_dist, out_mean, emit_rows)
+
+
+def default_points_per_cell(k: int) -> float:
+    """Cells of about k/2 points on a surface: the 3x3 cells around a query then hold its k
+    nearest in most cases, with few wasted candidates."""
+    return max(4.0, k / 2.0)
+
+
+def knn(xyz, k: int, *, grid: Grid = None, cell_size: float = None):
+    """Exact k nearest neighbours of every point, the point itself excluded.
+
+    Returns (indices int32 (n, k), distances float32 (n, k)), each row sorted by (distance,
+    index). numpy in -> numpy out; Taichi ndarray in -> ndarrays out. ``grid`` reuses a grid
+    built over the same ``xyz``; ``cell_size`` overrides the automatic cell size."""
+    n = length(xyz)
+    k = _check_k(k, n)
+    pts = as_ndarray(xyz, np.float32)
+    grid = _prepare(pts, k, grid, cell_size, default_points_per_cell(k))
+    out_idx = ndarray(ti.i32, (n, k))
+    out_dist = ndarray(ti.f32, (n, k))
+    dummy = ndarray(ti.f32, (1,))
+    _run_scan(grid, k, out_idx, out_dist, dummy, True, 0)
+    return like_input(out_idx, xyz), like_input(out_dist, xyz)
+
+
+def knn_mean_distance(xyz, k: int, *, include_self: bool = False, grid: Grid = None,
+                      cell_size: float = None):
+    """Mean Euclidean distance from every point to its k nearest neighbours (float32 (n,)),
+    without materialising an (n, k) array. ``include_self`` counts the point itself as one of
+    the k at distance 0 (Open3D's convention): the mean is then over its k-1 nearest others
+    plus a zero."""
+    n = length(xyz)
+    others = int(k) - 1 if include_self else int(k)
+    if include_self and int(k) == 1:
+        out = ndarray(ti.f32, (n,))   # only the point itself: distance 0
+        return like_input(out, xyz)
+    others = _check_k(others, n)
+    pts = as_ndarray(xyz, np.float32)
+    grid = _prepare(pts, others, grid, cell_size, default_points_per_cell(others))
+    out_mean = ndarray(ti.f32, (n,))
+    dummy_i = ndarray(ti.i32, (1, 1))
+    dummy_f = ndarray(ti.f32, (1, 1))
+    _run_scan(grid, others, dummy_i, dummy_f, out_mean, False, 1 if include_self else 0)
+    return like_input(out_mean, xyz)
+
+
+# ---------------------------------------------------------------- radius search
+
+@ti.kernel
+def _radius_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                 scell: ti.types.ndarray(dtype=ti.i32, ndim=2), bstart: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                 mask: ti.i32, rings: ti.i32, r2: ti.f32, count: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                 offsets: ti.types.ndarray(dtype=ti.i32, ndim=1), out_idx: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                 out_d2: ti.types.ndarray(dtype=ti.f32, ndim=1), fill: ti.template()):
+    for s in range(sxyz.shape[0]):
+        qi = order[s]
+        q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
+        c = ti.math.ivec3(scell[s, 0], scell[s, 1], scell[s, 2])
+        span = 2 * rings + 1
+        m = 0
+        base = 0
+        if ti.static(fill):
+            base = offsets[qi]
+        for t in range(span * span * span):
+            d = ti.math.ivec3(t % span - rings, (t // span) % span - rings, t // (span * span) - rings)
+            target = c + d
+            h = cell_hash(target, mask)
+            for j in range(bstart[h], bstart[h + 1]):
+                if scell[j, 0] == target[0] and scell[j, 1] == target[1] and scell[j, 2] == target[2] \
+                        and order[j] != qi:
+                    p = ti.math.vec3(sxyz[j, 0], sxyz[j, 1], sxyz[j, 2]) - q
+                    d2 = p.dot(p)
+                    if d2 <= r2:
+                        if ti.static(fill):
+                            out_idx[base + m] = order[j]
+                            out_d2[base + m] = d2
+                        m += 1
+        if ti.static(fill):
+            # insertion sort of the row by (distance, index): rows are short
+            for a in range(base + 1, base + m):
+                tk = out_d2[a]
+                tx = out_idx[a]
+                b = a
+                while b > base and _pair_less(ti.bit_cast(tk, ti.i32), tx,
+                                              ti.bit_cast(out_d2[b - 1], ti.i32), out_idx[b - 1]):
+                    out_d2[b] = out_d2[b - 1]
+                    out_idx[b] = out_idx[b - 1]
+                    b -= 1
+                out_d2[b] = tk
+                out_idx[b] = tx
+        else:
+            count[qi] = m
+
+
+@ti.kernel
+def _clip_counts(offsets: ti.types.ndarray(dtype=ti.i32, ndim=1), limit: ti.i32,
+                 count: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in range(count.shape[0]):
+        count[i] = ti.min(offsets[i + 1] - offsets[i], limit)
+
+
+@ti.kernel
+def _copy_rows(offsets: ti.types.ndarray(dtype=ti.i32, ndim=1), idx: ti.types.ndarray(dtype=ti.i32, ndim=1),
+               new_offsets: ti.types.ndarray(dtype=ti.i32, ndim=1), new_idx: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in range(new_offsets.shape[0] - 1):
+        for r in range(new_offsets[i + 1] - new_offsets[i]):
+            new_idx[new_offsets[i] + r] = idx[offsets[i] + r]
+
+
+def _csr_offsets(count):
+    n = length(count) - 1
+    offsets = ndarray(ti.i32, (n + 1,))
+    total = exclusive_scan_into(count, offsets)
+    return offsets, total
+
+
+def radius_search(xyz, radius: float, *, max_neighbors: int = None, grid: Grid = None):
+    """All points within ``radius`` (distance <= radius) of every point, the point itself
+    excluded, as CSR: (offsets int32 (n+1,), indices int32 (m,)); row i is
+    indices[offsets[i]:offsets[i+1]], sorted by (distance, index). ``max_neighbors`` keeps
+    only the nearest that many of each row."""
+    radius = float(radius)
+    if not radius >= 0:
+        raise ValueError(f"radius must be >= 0, got {radius}")
+    n = length(xyz)
+    pts = as_ndarray(xyz, np.float32)
+    if grid is None:
+        # a cell slightly larger than the radius: one ring of cells covers it despite rounding
+        grid = build_grid(pts, max(radius * 1.001, 1e-6) if n else 1.0)
+    elif grid.n != n:
+        raise ValueError(f"grid was built over {grid.n} points, xyz has {n}")
+    rings = max(1, int(np.ceil(radius / grid.cell_size + 1e-4)))
+    r2 = float(np.float32(radius) * np.float32(radius))
+    count = ndarray(ti.i32, (n + 1,))
+    dummy_i = ndarray(ti.i32, (1,))
+    dummy_f = ndarray(ti.f32, (1,))
+    args = (grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, grid.table_mask, rings, r2)
+    if n:
+        _radius_scan(*args, count, dummy_i, dummy_i, dummy_f, False)
+    offsets, total = _csr_offsets(count)
+    idx = ndarray(ti.i32, (total,))
+    if total:
+        d2 = ndarray(ti.f32, (total,))
+        _radius_scan(*args, count, offsets, idx, d2, True)
+    if max_neighbors is not None and n:
+        clipped = ndarray(ti.i32, (n + 1,))
+        _clip_counts(offsets, int(max_neighbors), clipped)
+        new_offsets, new_total = _csr_offsets(clipped)
+        new_idx = ndarray(ti.i32, (new_total,))
+        if new_total:
+            _copy_rows(offsets, idx, new_offsets, new_idx)
+        offsets, idx = new_offsets, new_idx
+    return like_input(offsets, xyz), like_input(idx, xyz)

@@ -1,0 +1,266 @@
+"""python -m roadx_ti: run | eval | info | synth.
+
+Exit codes: 0 ok, 2 usage or config error, 1 data error. User mistakes get one line on stderr,
+never a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from roadx_ti import __version__
+
+EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
+log = logging.getLogger("roadx_ti")
+
+
+class UsageError(Exception):
+    """A usage mistake (exit 2)."""
+
+
+class DataError(Exception):
+    """A data mistake (exit 1)."""
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="roadx_ti", description=__doc__.split("\n")[0])
+    p.add_argument("--version", action="version", version=f"roadx_ti {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    r = sub.add_parser("run", help="run a pipeline from a YAML config")
+    r.add_argument("config", help="YAML config (see configs/)")
+    r.add_argument("--input", nargs="+", metavar="PATH", help="input point cloud(s), replacing the config's")
+    r.add_argument("--output", metavar="PATH", help="output point cloud, replacing the config's")
+    r.add_argument("--backend", choices=["auto", "cpu", "vulkan", "cuda", "metal"])
+    r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a config key, e.g. --set stages.sor.k=30 (repeatable)")
+    r.add_argument("--quiet", action="store_true", help="only warnings and errors")
+
+    e = sub.add_parser("eval", help="score a prediction against truth (matched by point order)")
+    e.add_argument("--pred", required=True, metavar="PRED")
+    e.add_argument("--truth", required=True, metavar="TRUTH")
+    e.add_argument("--truth-classes", required=True, metavar="C[,C..]")
+    e.add_argument("--pred-classes", metavar="C[,C..]", help="default: the truth classes")
+
+    i = sub.add_parser("info", help="point count, bounds, attributes, colour, classes")
+    i.add_argument("path")
+
+    s = sub.add_parser("synth", help="write a synthetic scene with truth classes")
+    s.add_argument("--kind", required=True, choices=["uav-road", "als-roof"])
+    s.add_argument("--points", required=True, type=_count)
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("-o", "--output", required=True)
+    return p
+
+
+def _count(text: str) -> int:
+    """Point counts like 1000000, 1M, 250k."""
+    t = text.strip().lower()
+    scale = {"k": 1_000, "m": 1_000_000}.get(t[-1:], 1)
+    try:
+        value = int(float(t[:-1] if scale != 1 else t) * scale)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a point count: {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"point count must be > 0, got {text!r}")
+    return value
+
+
+def _classes(text: str, flag: str) -> list[int]:
+    try:
+        values = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise UsageError(f"{flag} {text!r}: expected class numbers like 11 or 2,11") from None
+    if not values or any(not 0 <= v <= 255 for v in values):
+        raise UsageError(f"{flag} {text!r}: classes are integers 0..255")
+    return values
+
+
+def _setup_logging(quiet: bool) -> None:
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("roadx_ti: %(message)s"))
+    root = logging.getLogger("roadx_ti")
+    root.handlers[:] = [handler]
+    root.setLevel(logging.WARNING if quiet else logging.INFO)
+    root.propagate = False
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help(sys.stderr)
+        return EXIT_USAGE
+    _setup_logging(getattr(args, "quiet", False))
+    from roadx_ti.config import ConfigError
+    from roadx_ti.io import InputError
+
+    try:
+        return {"run": cmd_run, "eval": cmd_eval, "info": cmd_info, "synth": cmd_synth}[args.command](args)
+    except (ConfigError, UsageError) as exc:
+        print(f"roadx_ti: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except (InputError, DataError) as exc:
+        print(f"roadx_ti: {exc}", file=sys.stderr)
+        return EXIT_DATA
+    except KeyboardInterrupt:
+        print("roadx_ti: interrupted; no output was written", file=sys.stderr)
+        return 130
+
+
+# --------------------------------------------------------------------------------------- run
+def _output_paths(out: Path) -> dict:
+    stem = out.with_suffix("")
+    return {"summary": Path(f"{stem}.summary.json"), "config": Path(f"{stem}.config.yaml"),
+            "png": Path(f"{stem}.png")}
+
+
+def cmd_run(args) -> int:
+    from roadx_ti import backend, config, io, pipelines
+    from roadx_ti.stages.base import StageContext
+
+    overrides = list(args.set)
+    cfg = config.load(args.config, overrides)
+    if args.input:
+        cfg.input = config.InputConfig(paths=list(args.input))
+    if args.output:
+        cfg.output.path = args.output
+    if args.backend:
+        cfg.backend = args.backend
+    if not cfg.input.paths and cfg.input.synthetic is None:
+        raise config.ConfigError("config error: input: give input.paths, input.synthetic or --input PATH")
+    if len(cfg.input.paths) > 1:
+        raise UsageError("several input files are not supported by `run` yet: merge them first (e.g. pdal merge)")
+    for p in cfg.input.paths:
+        if not Path(p).is_file():
+            raise config.ConfigError(f"config error: input.paths = {p!r}: no such file")
+    out = Path(cfg.output.path)
+    io.check_output_path(out, cfg.input.paths)
+    stage_specs = cfg.stage_list() or pipelines.default_stage_specs(cfg.pipeline)
+
+    t0 = time.perf_counter()
+    if cfg.input.synthetic is not None and not cfg.input.paths:
+        from roadx_ti import synthetic
+        s = cfg.input.synthetic
+        cloud = synthetic.generate(s.kind, s.points, s.seed)
+    else:
+        cloud = io.read(cfg.input.paths[0])
+    read_s = time.perf_counter() - t0
+    log.info("read %d points from %s in %.2f s", cloud.n, cloud.source, read_s)
+    if cloud.n == 0:
+        raise DataError(f"{cloud.source}: the input holds no points")
+
+    arch = backend.init(cfg.backend, threads=cfg.threads)
+    log.info("Taichi backend: %s", arch)
+    truth = None
+    if cloud.classification is not None:
+        from roadx_ti.metrics import class_mask
+        truth = class_mask(cloud.classification, cfg.truth_classes)
+        if not truth.any():
+            truth = None
+    ctx = StageContext(seed=cfg.seed, log=log)
+    stages = pipelines.build_stages(stage_specs)
+    progress = _progress_bar(len(stages), args.quiet)
+    result = pipelines.run(cloud, stages, ctx=ctx, truth=truth, progress=progress)
+    if progress is not None:
+        progress.close()
+
+    target = config.PIPELINE_TARGET[cfg.pipeline]
+    subset = None if cfg.output.points == "all" else result.processed
+    t1 = time.perf_counter()
+    io.write(out, cloud, classification=result.classification,
+             extra_dims={"roadx_label": result.decided_by, "segment_id": result.segment_id}, subset=subset)
+    write_s = time.perf_counter() - t1
+    paths = _output_paths(out)
+    summary = {
+        "roadx_ti": __version__, "pipeline": cfg.pipeline, "input": cloud.source, "output": str(out),
+        "points": cloud.n, "backend": arch, "read_seconds": round(read_s, 4),
+        "pipeline_seconds": round(result.seconds, 4), "write_seconds": round(write_s, 4),
+        "target_class": target, "target_points": int((result.classification == target).sum()),
+        "roadx_label": {"0": "reached the last stage"} | {str(r["index"]): f"removed by {r['stage']}"
+                                                         for r in result.stages},
+        "stages": result.stages,
+    }
+    if truth is not None:
+        from roadx_ti.metrics import scores
+        summary["truth_classes"] = cfg.truth_classes
+        summary["accuracy"] = scores(truth, result.classification == target)
+        acc = summary["accuracy"]
+        log.info("accuracy vs classes %s: type I %.2f %%, type II %.2f %%, total %.2f %%, kappa %.4f",
+                 cfg.truth_classes, 100 * acc["type1"], 100 * acc["type2"], 100 * acc["total"], acc["kappa"])
+    from roadx_ti import report
+    report.write_json(paths["summary"], summary)
+    with io.atomic_output(paths["config"]) as tmp:
+        Path(tmp).write_text(config.dump(cfg))
+    if cfg.output.report_png:
+        predicted = result.classification == target
+        report.top_view_png(paths["png"], cloud.xyz[:, :2], result.classification,
+                            truth=truth, predicted=predicted if truth is not None else None,
+                            title=f"{cfg.pipeline}: {Path(cloud.source).name if cloud.las else cloud.source}")
+    log.info("wrote %s (+ %s, %s%s) in %.2f s total", out, paths["summary"].name, paths["config"].name,
+             f", {paths['png'].name}" if cfg.output.report_png else "", time.perf_counter() - t0)
+    return EXIT_OK
+
+
+def _progress_bar(total: int, quiet: bool):
+    if quiet or not sys.stderr.isatty():
+        return None
+    from tqdm import tqdm
+
+    bar = tqdm(total=total, unit="stage", file=sys.stderr, leave=False)
+
+    def advance(name, number, count):
+        bar.set_description(name)
+        bar.update(1)
+    advance.close = bar.close
+    return advance
+
+
+# -------------------------------------------------------------------------------------- eval
+def cmd_eval(args) -> int:
+    from roadx_ti import io
+    from roadx_ti.metrics import class_mask, scores
+
+    truth_classes = _classes(args.truth_classes, "--truth-classes")
+    pred_classes = _classes(args.pred_classes, "--pred-classes") if args.pred_classes else truth_classes
+    pred = io.read(args.pred)
+    truth = io.read(args.truth)
+    if pred.n != truth.n:
+        raise DataError(f"{args.pred} has {pred.n} points but {args.truth} has {truth.n}: "
+                        "points are matched by order, the counts must be equal")
+    for cloud, name in ((pred, args.pred), (truth, args.truth)):
+        if cloud.classification is None:
+            raise DataError(f"{name} has no classification")
+    result = scores(class_mask(truth.classification, truth_classes), class_mask(pred.classification, pred_classes))
+    result["truth_classes"], result["pred_classes"] = truth_classes, pred_classes
+    print(json.dumps(result))
+    return EXIT_OK
+
+
+# -------------------------------------------------------------------------------------- info
+def cmd_info(args) -> int:
+    from roadx_ti import io
+
+    print(json.dumps(io.info(args.path), indent=2, default=str))
+    return EXIT_OK
+
+
+# ------------------------------------------------------------------------------------- synth
+def cmd_synth(args) -> int:
+    from roadx_ti import io, synthetic
+
+    out = Path(args.output)
+    io.check_output_path(out, [])
+    try:
+        cloud = synthetic.generate(args.kind, args.points, args.seed)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    io.write(out, cloud, classification=cloud.classification)
+    log.info("wrote %d points (%s, seed %d) to %s", cloud.n, args.kind, args.seed, out)
+    return EXIT_OK

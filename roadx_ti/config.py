@@ -1,0 +1,184 @@
+"""YAML run configuration -> a typed, validated object.
+
+Every key is declared with its default and unit (lengths in metres); unknown keys, wrong types and
+out-of-range values are errors that name the key, the value and what is allowed, in one line.
+``--set a.b=value`` overrides any key; a stage is addressed by its name (``stages.sor.k=30``) or its
+position (``stages.1.k=30``).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal, Union
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from roadx_ti import backend as _backend
+from roadx_ti.stages import REGISTRY, stage_class
+
+
+class ConfigError(ValueError):
+    """A configuration mistake; the message is one line meant for the user."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class SyntheticInput(_Strict):
+    kind: Literal["uav-road", "als-roof"] = "uav-road"
+    points: int = Field(1_000_000, ge=1000, lt=2**31, description="number of points")
+    seed: int = Field(0, ge=0)
+
+
+class InputConfig(_Strict):
+    paths: list[str] = Field(default_factory=list, description="LAS/LAZ/PLY/PCD/NPZ/XYZ files")
+    synthetic: SyntheticInput | None = None
+
+
+class OutputConfig(_Strict):
+    path: str = Field("out/result.laz", description="result point cloud (.laz/.las/.ply/.npz/.xyz)")
+    points: Literal["all", "processed"] = Field(
+        "all", description="all: every input point in input order (label transfer for points "
+        "skipped by downsampling); processed: only the points that reached the last stage")
+    report_png: bool = Field(True, description="write a top-view PNG beside the output")
+
+
+class EvaluateConfig(_Strict):
+    truth_classes: list[int] | None = Field(
+        None, description="input classes that are the target truth (default: the pipeline's "
+        "target class); accuracy is reported when the input has a classification")
+
+
+PIPELINE_TARGET = {"road": 11, "roof": 6, "ground": 2}
+
+
+class RunConfig(_Strict):
+    pipeline: Literal["road", "roof", "ground"] = "road"
+    input: InputConfig = Field(default_factory=InputConfig)
+    output: OutputConfig = Field(default_factory=OutputConfig)
+    backend: Literal[_backend.CHOICES] = "auto"  # type: ignore[valid-type]
+    threads: int | None = Field(None, ge=1, description="CPU threads for Taichi (default: all)")
+    seed: int = Field(0, ge=0, description="seed of every random choice (RANSAC hypotheses)")
+    evaluate: EvaluateConfig = Field(default_factory=EvaluateConfig)
+    stages: list[dict[str, Any]] = Field(default_factory=list)
+
+    @field_validator("stages")
+    @classmethod
+    def _stage_entries(cls, stages):
+        for i, entry in enumerate(stages):
+            if not isinstance(entry, dict) or len(entry) != 1:
+                raise ValueError(f"stages[{i}] must be a mapping of one stage name to its options")
+            (name,) = entry
+            if name not in REGISTRY:
+                raise ValueError(f"stages[{i}]: unknown stage {name!r}; known: {', '.join(REGISTRY)}")
+        return stages
+
+    def stage_list(self):
+        """(name, options object) per stage, options validated by the stage's own model."""
+        out = []
+        for i, entry in enumerate(self.stages):
+            (name, opts), = entry.items()
+            cls = stage_class(name)
+            try:
+                out.append((name, cls.Options(**(opts or {}))))
+            except ValidationError as exc:
+                raise ConfigError(_one_line(exc, prefix=f"stages[{i}].{name}")) from None
+            except TypeError:
+                raise ConfigError(f"stages[{i}].{name}: options must be a mapping, got {opts!r}") from None
+        return out
+
+    @property
+    def truth_classes(self) -> list[int]:
+        return self.evaluate.truth_classes or [PIPELINE_TARGET[self.pipeline]]
+
+
+def _one_line(exc: ValidationError, prefix: str = "") -> str:
+    err = exc.errors()[0]
+    loc = ".".join(str(p) for p in err["loc"])
+    key = f"{prefix}.{loc}" if prefix and loc else (prefix or loc)
+    msg = err["msg"]
+    if err["type"] == "extra_forbidden":
+        msg = "unknown key"
+    more = f" (and {len(exc.errors()) - 1} more)" if len(exc.errors()) > 1 else ""
+    return f"config error: {key} = {err.get('input')!r}: {msg}{more}"
+
+
+def parse_value(text: str):
+    """A --set value: YAML scalar syntax (numbers, true/false, null, [lists])."""
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text
+
+
+def apply_override(raw: dict, assignment: str) -> None:
+    """Apply ``a.b.c=value`` to the raw config mapping, in place."""
+    if "=" not in assignment:
+        raise ConfigError(f"--set {assignment!r}: expected KEY=VALUE, e.g. stages.sor.k=30")
+    key, _, text = assignment.partition("=")
+    parts = [p for p in key.strip().split(".") if p]
+    if not parts:
+        raise ConfigError(f"--set {assignment!r}: empty key")
+    node: Any = raw
+    for depth, part in enumerate(parts[:-1]):
+        if isinstance(node, list):
+            node = _stage_options(node, part, key)
+            continue
+        if part not in node or node[part] is None:
+            node[part] = {}
+        node = node[part]
+    last = parts[-1]
+    if isinstance(node, list):
+        raise ConfigError(f"--set {key}: name an option of the stage, e.g. {key}.k=30")
+    if not isinstance(node, dict):
+        raise ConfigError(f"--set {key}: {'.'.join(parts[:-1])} is not a mapping")
+    node[last] = parse_value(text)
+
+
+def _stage_options(stages: list, part: str, key: str) -> dict:
+    for i, entry in enumerate(stages):
+        if isinstance(entry, dict) and (part in entry or part == str(i)):
+            (name,) = entry
+            if entry[name] is None:
+                entry[name] = {}
+            return entry[name]
+    raise ConfigError(f"--set {key}: no stage {part!r} in this config")
+
+
+def load(path: str | Path, overrides: list[str] = ()) -> RunConfig:
+    """Read, override and validate a YAML config; every mistake raises ConfigError (one line)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ConfigError(f"config file {path} does not exist")
+    try:
+        raw = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        where = getattr(exc, "problem_mark", None)
+        at = f" at line {where.line + 1}" if where else ""
+        raise ConfigError(f"config file {path} is not valid YAML{at}") from None
+    if not isinstance(raw, dict):
+        raise ConfigError(f"config file {path} must hold a mapping of keys, got {type(raw).__name__}")
+    return from_mapping(raw, overrides)
+
+
+def from_mapping(raw: dict, overrides: list[str] = ()) -> RunConfig:
+    raw = yaml.safe_load(yaml.safe_dump(raw))  # deep copy of plain data
+    if isinstance(raw.get("input"), (str, list)):  # shorthand: input: path | [paths]
+        paths = raw["input"]
+        raw["input"] = {"paths": [paths] if isinstance(paths, str) else paths}
+    if isinstance(raw.get("output"), str):  # shorthand: output: path
+        raw["output"] = {"path": raw["output"]}
+    for assignment in overrides:
+        apply_override(raw, assignment)
+    try:
+        cfg = RunConfig(**raw)
+    except ValidationError as exc:
+        raise ConfigError(_one_line(exc)) from None
+    cfg.stage_list()  # validate every stage's options now, before any work starts
+    return cfg
+
+
+def dump(cfg: RunConfig) -> str:
+    """The resolved config as YAML (what was run, written beside the output)."""
+    return yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False)

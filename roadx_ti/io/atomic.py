@@ -1,0 +1,98 @@
+"""Safe outputs, shared by every writer: the one-line InputError, the check that an output never
+replaces an input, and atomic replacement (temporary file in the destination folder, fsync, rename),
+so that a crash or an error mid-way never leaves a partial or corrupt output behind."""
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from pathlib import Path
+from typing import Iterable, Iterator
+
+
+class InputError(ValueError):
+    """A problem with a file the user named: one line, naming the file and the problem."""
+
+    def __init__(self, message: str):
+        super().__init__(" ".join(str(message).split()))  # always one line
+
+
+def fail(path, problem: str) -> InputError:
+    """The InputError for ``path``: 'PATH: problem'."""
+    return InputError(f"{path}: {problem}")
+
+
+def check_output_path(output, inputs: Iterable = ()) -> Path:
+    """Refuse an output that is one of the inputs (same resolved path or same file through a
+    link), or whose folder is missing or not writable. Returns the output as a Path."""
+    out = Path(output)
+    if out.is_dir():
+        raise fail(out, "is a folder, expected an output file name")
+    resolved = out.resolve()
+    for given in inputs:
+        if given is None or str(given) == "":
+            continue
+        src = Path(given)
+        same = resolved == src.resolve()
+        if not same and out.exists() and src.exists():
+            with contextlib.suppress(OSError):
+                same = os.path.samefile(out, src)
+        if same:
+            raise fail(out, f"refusing to write over the input file {src}; choose another output path")
+    folder = resolved.parent
+    if not folder.is_dir():
+        raise fail(out, f"output folder {folder} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise fail(out, f"output folder {folder} is not writable")
+    return out
+
+
+def _fsync_path(path: Path, directory: bool = False) -> None:
+    flags = os.O_RDONLY | (getattr(os, "O_DIRECTORY", 0) if directory else 0)
+    try:
+        fd = os.open(path, flags)
+    except OSError:
+        if directory:  # some platforms cannot open folders; the rename is still atomic
+            return
+        raise
+    try:
+        os.fsync(fd)
+    except OSError:
+        if not directory:
+            raise
+    finally:
+        os.close(fd)
+
+
+def _umask() -> int:
+    """The process umask, read without changing it where the system allows (os.umask both sets and
+    reads, which would race with other threads creating files)."""
+    with contextlib.suppress(OSError, ValueError):
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+@contextlib.contextmanager
+def atomic_output(path) -> Iterator[Path]:
+    """``with atomic_output(p) as tmp: write tmp`` -> ``tmp`` is fsynced and renamed to ``p`` when
+    the block succeeds; on any exception it is removed and ``p`` is left as it was. The temporary
+    name is hidden, in the destination's folder (same file system, so the rename is atomic), and
+    ends with the destination's suffix so writers that choose a format by extension still work."""
+    dest = Path(path)
+    fd, name = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.stem}.", suffix=f".partial{dest.suffix}")
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        yield tmp
+        _fsync_path(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the usual permissions
+        os.replace(tmp, dest)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    _fsync_path(dest.parent, directory=True)

@@ -1,0 +1,386 @@
+"""LAS/LAZ through laspy (lazrs decodes LAZ).
+
+Reading keeps the laspy ``LasData`` in ``cloud.las``; the kernels get ``xyz`` as float32
+coordinates relative to a float64 local origin: the floor of the header's minimum corner (the same
+origin for a whole file and for any ``bounds`` window of it, so tiles of one file line up exactly),
+or the floor of the points' minimum corner when the header box does not contain the points.
+
+Writing a cloud read from LAS starts from its point records: every standard attribute and extra
+dimension is copied byte for byte in the input order, the header (version, point format, scales,
+offsets, VLRs with the CRS) is kept, and only the classification and the named extra dimensions
+change. A cloud from elsewhere becomes LAS 1.4 point format 7 (with colour) or 6, scale 1 mm,
+offset = its origin.
+"""
+from __future__ import annotations
+
+import copy
+import logging
+import re
+
+import laspy
+import numpy as np
+
+from ..cloud import Cloud, detect_color_depth
+from .atomic import InputError, atomic_output, fail
+
+try:
+    from lazrs import LazrsError
+except ImportError:  # LAZ then fails in laspy with its own message, mapped below
+    class LazrsError(Exception):
+        pass
+
+log = logging.getLogger(__name__)
+
+MAX_POINTS = 2**31 - 1      # arrays and kernel indices are 32-bit
+CHUNK_POINTS = 1_000_000    # points per chunk for windowed reads and info
+NEW_FILE_SCALE = 0.001      # metres: scale of LAS files written from non-LAS clouds
+# LAS 1.0-1.3 formats keep the class in 5 bits (0-31); the 1.4 format with the same fields holds 0-255
+WIDE_CLASS_FORMAT = {0: 6, 1: 6, 2: 7, 3: 7, 4: 9, 5: 10}
+EXTRA_DIM_TYPES = {np.dtype(t) for t in ("u1", "i1", "u2", "i2", "u4", "i4", "u8", "i8", "f4", "f8")}
+LAS_ERRORS = (laspy.errors.LaspyException, LazrsError, ValueError, OSError, EOFError, IndexError,
+              KeyError, TypeError)
+
+
+def _las_error(path, exc: Exception) -> InputError:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    if "too small" in text or "to small" in text or "signature" in text.lower():
+        return fail(path, f"not a LAS/LAZ file ({text})")
+    return fail(path, f"truncated or corrupt LAS/LAZ file ({text})")
+
+
+def _too_many(path, n: int) -> InputError:
+    return fail(path, f"{n} points is more than one cloud can hold (2**31-1); split it into tiles "
+                      "(read it in windows with read(path, bounds=...), or pdal tile / lastile)")
+
+
+def _check_header(path, header) -> None:
+    if not (np.all(np.isfinite(header.scales)) and np.all(np.isfinite(header.offsets))
+            and np.all(np.asarray(header.scales) != 0)):
+        raise fail(path, f"invalid header: scales {list(header.scales)} offsets "
+                         f"{list(header.offsets)}, so all {header.point_count} coordinates are NaN/inf")
+
+
+def _world_xyz(points) -> np.ndarray:
+    """float64 world coordinates of a laspy point record (scaled integers)."""
+    return np.column_stack([np.asarray(points.x, dtype=np.float64), np.asarray(points.y, dtype=np.float64),
+                            np.asarray(points.z, dtype=np.float64)])
+
+
+def _local_origin(header_mins, header_maxs, scales, world: np.ndarray) -> np.ndarray:
+    hmin, hmax = np.asarray(header_mins, np.float64), np.asarray(header_maxs, np.float64)
+    if len(world) == 0:
+        return np.floor(hmin) if np.all(np.isfinite(hmin)) else np.zeros(3)
+    lo, hi = world.min(axis=0), world.max(axis=0)
+    tol = np.abs(np.asarray(scales, np.float64))
+    if np.all(np.isfinite(hmin)) and np.all(lo >= hmin - tol) and np.all(hi <= hmax + tol):
+        return np.floor(hmin)
+    return np.floor(lo)  # header box is stale or wrong: fall back to the data
+
+
+def _read_window(path, reader, bounds) -> laspy.ScaleAwarePointRecord:
+    """Points with xmin <= x < xmax and ymin <= y < ymax, read chunk by chunk."""
+    header = reader.header
+    xmin, ymin, xmax, ymax = (float(b) for b in bounds)
+    kept = []
+    hmin, hmax = header.mins, header.maxs
+    disjoint = hmax[0] < xmin or hmin[0] >= xmax or hmax[1] < ymin or hmin[1] >= ymax
+    if not disjoint:
+        seen = 0
+        for chunk in reader.chunk_iterator(CHUNK_POINTS):
+            seen += len(chunk)
+            x, y = np.asarray(chunk.x), np.asarray(chunk.y)
+            inside = (x >= xmin) & (x < xmax) & (y >= ymin) & (y < ymax)
+            if inside.any():
+                kept.append(chunk.array[inside])
+        if seen != header.point_count:
+            raise fail(path, f"truncated LAS/LAZ file: {seen} of {header.point_count} points could be read")
+    array = np.concatenate(kept) if kept else np.zeros(0, dtype=header.point_format.dtype())
+    if len(array) > MAX_POINTS:
+        raise _too_many(path, len(array))
+    return laspy.ScaleAwarePointRecord(array, header.point_format, header.scales, header.offsets)
+
+
+def read_las(path, bounds=None, origin=None) -> Cloud:
+    """Read a LAS/LAZ file (optionally only the points inside ``bounds`` = (xmin, ymin, xmax, ymax),
+    half-open) into a Cloud that keeps the LasData in ``cloud.las``."""
+    try:
+        with laspy.open(path) as reader:
+            header = reader.header
+            _check_header(path, header)
+            hmins, hmaxs = np.array(header.mins, np.float64), np.array(header.maxs, np.float64)
+            if bounds is None:
+                if header.point_count > MAX_POINTS:
+                    raise _too_many(path, header.point_count)
+                las = reader.read()
+                if len(las.points) != header.point_count:
+                    raise fail(path, f"truncated LAS/LAZ file: {len(las.points)} of "
+                                     f"{header.point_count} points could be read")
+            else:
+                points = _read_window(path, reader, bounds)
+                las = laspy.LasData(copy.deepcopy(header), points)
+    except InputError:
+        raise
+    except LAS_ERRORS as exc:
+        raise _las_error(path, exc) from exc
+    world = _world_xyz(las.points)
+    if origin is None:
+        origin = _local_origin(hmins, hmaxs, las.header.scales, world)
+    origin = np.asarray(origin, dtype=np.float64).reshape(3)
+    rgb, depth = _las_rgb(las)
+    return Cloud(xyz=(world - origin).astype(np.float32), origin=origin, rgb=rgb, color_depth=depth,
+                 intensity=np.asarray(las.intensity, dtype=np.uint16),
+                 classification=np.asarray(las.classification, dtype=np.uint8),
+                 las=las, source=str(path))
+
+
+def _las_rgb(las) -> tuple[np.ndarray | None, int]:
+    """RGB when the format has colour and it is not all zero (IGN tiles carry zero colour fields)."""
+    if "red" not in las.point_format.dimension_names:
+        return None, 0
+    rgb = np.column_stack([np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)]).astype(np.uint16)
+    if not rgb.any():
+        return None, 0
+    return rgb, detect_color_depth(rgb)
+
+
+# ---------------------------------------------------------------------------------------- writing
+
+def _index(subset, n: int):
+    """``subset`` (bool mask or indices) checked against n points; None keeps all."""
+    if subset is None:
+        return None
+    index = np.asarray(subset)
+    if index.dtype == bool:
+        if index.shape != (n,):
+            raise ValueError(f"subset mask has shape {index.shape}, expected ({n},)")
+        return index
+    if index.ndim != 1 or not np.issubdtype(index.dtype, np.integer):
+        raise ValueError("subset must be a boolean mask or an array of point indices")
+    if index.size and (index.min() < -n or index.max() >= n):
+        raise ValueError(f"subset indices out of range for {n} points")
+    return index
+
+
+def _per_point(name: str, values, n: int, index) -> np.ndarray:
+    a = np.asarray(values)
+    if a.ndim != 1 or len(a) != n:
+        raise ValueError(f"{name} has shape {a.shape}, expected ({n},)")
+    return a if index is None else a[index]
+
+
+def _classes(path, values: np.ndarray) -> np.ndarray:
+    if values.size and not np.issubdtype(values.dtype, np.integer):
+        raise fail(path, f"classification must be integers 0-255, got {values.dtype}")
+    if values.size and (int(values.min()) < 0 or int(values.max()) > 255):
+        raise fail(path, f"classification values {int(values.min())}..{int(values.max())} "
+                         "are outside the LAS range 0-255")
+    return values.astype(np.uint8)
+
+
+def _extra_dim_values(path, name: str, values: np.ndarray) -> np.ndarray:
+    if values.dtype == bool:
+        values = values.astype(np.uint8)
+    if values.dtype.newbyteorder("=") not in EXTRA_DIM_TYPES:
+        raise fail(path, f"extra dimension {name!r} has type {values.dtype}; LAS extra bytes hold "
+                         "8-64 bit integers and 32/64 bit floats")
+    if not name or len(name.encode()) > 32:
+        raise fail(path, f"extra dimension name {name!r} must be 1-32 bytes long")
+    return values.astype(values.dtype.newbyteorder("="), copy=False)
+
+
+def _set_extra_dims(path, header, array: np.ndarray, extra: dict) -> laspy.ScaleAwarePointRecord:
+    """A record with ``header``'s format plus ``extra`` dims (same-named extra dims replaced in
+    place when the type matches, else re-declared); existing fields are copied as raw bytes."""
+    fmt = header.point_format
+    existing = {d.name: d for d in fmt.extra_dimensions}
+    standard = set(fmt.standard_dimension_names) | {"x", "y", "z"}
+    replace, add = [], []
+    for name, values in extra.items():
+        if name in standard:
+            raise fail(path, f"extra dimension {name!r} clashes with the standard LAS dimension of "
+                             "that name; pass the classification through classification=")
+        old = existing.get(name)
+        if old is not None and (array.dtype[name].base != values.dtype or array.dtype[name].shape
+                                or old.scales is not None or old.offsets is not None):
+            replace.append(name)
+        if old is None or name in replace:
+            add.append(laspy.ExtraBytesParams(name=name, type=values.dtype))
+    if replace:
+        header.remove_extra_dims(replace)
+    if add:
+        header.add_extra_dims(add)
+    record = laspy.ScaleAwarePointRecord.zeros(len(array), header=header)
+    for name in array.dtype.names:
+        if name not in replace:
+            record.array[name] = array[name]
+    for name, values in extra.items():
+        record.array[name] = values
+    return record
+
+
+def _las_from_record(path, src, n: int, classification, extra_dims, index) -> laspy.LasData:
+    if len(src.points) != n:
+        raise ValueError(f"cloud has {n} points but its LAS record has {len(src.points)}")
+    header = copy.deepcopy(src.header)
+    array = src.points.array if index is None else src.points.array[index]
+    classes = None if classification is None else _classes(path, _per_point("classification", classification, n, index))
+    fmt_id = header.point_format.id
+    if classes is not None and fmt_id in WIDE_CLASS_FORMAT and classes.size and int(classes.max()) > 31:
+        wide = WIDE_CLASS_FORMAT[fmt_id]
+        log.warning("%s: class %d does not fit LAS point format %d (classes 0-31); writing LAS 1.4 "
+                    "point format %d instead", path, int(classes.max()), fmt_id, wide)
+        upgraded = laspy.convert(laspy.LasData(header, laspy.ScaleAwarePointRecord(
+            array.copy(), header.point_format, header.scales, header.offsets)),
+            point_format_id=wide, file_version="1.4")
+        header, array = upgraded.header, upgraded.points.array
+    extra = {name: _extra_dim_values(path, name, _per_point(name, v, n, index))
+             for name, v in (extra_dims or {}).items()}
+    if extra:
+        record = _set_extra_dims(path, header, array, extra)
+    else:
+        record = laspy.ScaleAwarePointRecord(array.copy(), header.point_format, header.scales, header.offsets)
+    if classes is not None:
+        record["classification"] = classes   # legacy formats: only the 5 class bits change
+    return laspy.LasData(header, record)
+
+
+def _las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> laspy.LasData:
+    n = cloud.n
+    has_rgb = cloud.rgb is not None
+    header = laspy.LasHeader(point_format=7 if has_rgb else 6, version="1.4")
+    header.scales = np.full(3, NEW_FILE_SCALE)
+    header.offsets = cloud.origin.copy()
+    standard = set(header.point_format.standard_dimension_names)
+    columns = dict(cloud.attributes)
+    columns.update(extra_dims or {})
+    standard_cols, extra = {}, {}
+    for name, values in columns.items():
+        a = _per_point(name, values, n, index)
+        if name in ("X", "Y", "Z", "x", "y", "z", "red", "green", "blue", "intensity", "classification"):
+            raise fail(path, f"attribute {name!r} would hide the cloud's own {name}; rename it")
+        if name in standard:
+            standard_cols[name] = a
+        else:
+            extra[name] = _extra_dim_values(path, name, a)
+    local = cloud.xyz.astype(np.float64) if index is None else cloud.xyz[index].astype(np.float64)
+    ints = np.round(local / NEW_FILE_SCALE)
+    if ints.size and (np.abs(ints).max() > 2**31 - 1):
+        raise fail(path, "coordinates span more than +-2147 km from the origin at 1 mm scale; "
+                         "split the cloud or move its origin")
+    record = _set_extra_dims(path, header, np.zeros(len(local), dtype=header.point_format.dtype()), extra)
+    record.array["X"], record.array["Y"], record.array["Z"] = (ints[:, k].astype(np.int32) for k in range(3))
+    if has_rgb:
+        rgb = cloud.rgb if index is None else cloud.rgb[index]
+        rgb = rgb.astype(np.uint16) * np.uint16(257) if cloud.color_depth == 8 else rgb.astype(np.uint16)
+        record["red"], record["green"], record["blue"] = rgb[:, 0], rgb[:, 1], rgb[:, 2]
+    if cloud.intensity is not None:
+        record["intensity"] = _per_point("intensity", cloud.intensity, n, index).astype(np.uint16)
+    classes = classification if classification is not None else cloud.classification
+    if classes is not None:
+        record["classification"] = _classes(path, _per_point("classification", classes, n, index))
+    for name, a in standard_cols.items():
+        target = record[name]
+        cast = a.astype(np.asarray(target).dtype)
+        if not np.array_equal(cast, a):
+            raise fail(path, f"attribute {name!r} does not fit the LAS {name} field ({np.asarray(target).dtype})")
+        record[name] = cast
+    return laspy.LasData(header, record)
+
+
+def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=None) -> None:
+    """Write ``cloud`` to LAS, or LAZ when ``path`` ends with .laz, atomically."""
+    index = _index(subset, cloud.n)
+    if cloud.las is not None:
+        las = _las_from_record(path, cloud.las, cloud.n, classification, extra_dims, index)
+    else:
+        las = _las_from_arrays(path, cloud, classification, extra_dims, index)
+    if len(las.points) > MAX_POINTS:
+        raise _too_many(path, len(las.points))
+    compress = str(path).lower().endswith(".laz")
+    with atomic_output(path) as tmp:
+        with open(tmp, "wb") as f:
+            las.write(f, do_compress=compress)
+
+
+# ------------------------------------------------------------------------------- header look-ups
+
+def read_header_las(path):
+    """(point count, (xmin, ymin, xmax, ymax)) from the header alone."""
+    try:
+        with laspy.open(path) as reader:
+            h = reader.header
+            return int(h.point_count), (float(h.mins[0]), float(h.mins[1]), float(h.maxs[0]), float(h.maxs[1]))
+    except LAS_ERRORS as exc:
+        raise _las_error(path, exc) from exc
+
+
+def crs_text(header) -> str | None:
+    """The CRS as 'NAME (EPSG:n)', 'NAME' or 'EPSG:n' from the WKT or GeoTIFF-keys VLRs (no pyproj)."""
+    for vlr in list(header.vlrs) + list(header.evlrs or []):
+        wkt = getattr(vlr, "string", None)
+        if isinstance(wkt, bytes):
+            wkt = wkt.decode("ascii", "replace")
+        if isinstance(wkt, str) and wkt.strip():
+            name = re.match(r'\s*\w+\[\s*"([^"]*)"', wkt)
+            codes = re.findall(r'(?:AUTHORITY|ID)\[\s*"EPSG"\s*,\s*"?(\d+)"?\s*\]', wkt)
+            parts = [name.group(1)] if name else []
+            if codes:
+                parts.append(f"(EPSG:{codes[-1]})" if parts else f"EPSG:{codes[-1]}")
+            if parts:
+                return " ".join(parts)
+    for vlr in header.vlrs:
+        keys = {k.id: k for k in getattr(vlr, "geo_keys", [])}
+        for key_id in (3072, 2048):    # ProjectedCSTypeGeoKey, GeographicTypeGeoKey
+            key = keys.get(key_id)
+            if key is not None and key.tiff_tag_location == 0 and 0 < key.value_offset < 32767:
+                return f"EPSG:{key.value_offset}"
+    return None
+
+
+def info_las(path) -> dict:
+    """Header facts plus the class histogram, colour and exact bounds from a chunked pass."""
+    try:
+        with laspy.open(path) as reader:
+            h = reader.header
+            fmt = h.point_format
+            has_rgb = "red" in fmt.dimension_names
+            hist = np.zeros(256, dtype=np.int64)
+            lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+            color_max, seen = 0, 0
+            for chunk in reader.chunk_iterator(CHUNK_POINTS):
+                seen += len(chunk)
+                hist += np.bincount(np.asarray(chunk.classification, dtype=np.uint8), minlength=256)
+                xyz = _world_xyz(chunk)
+                lo, hi = np.minimum(lo, xyz.min(axis=0)), np.maximum(hi, xyz.max(axis=0))
+                if has_rgb:
+                    color_max = max(color_max, int(np.asarray(chunk.red).max()),
+                                    int(np.asarray(chunk.green).max()), int(np.asarray(chunk.blue).max()))
+            if seen != h.point_count:
+                raise fail(path, f"truncated LAS/LAZ file: {seen} of {h.point_count} points could be read")
+    except InputError:
+        raise
+    except LAS_ERRORS as exc:
+        raise _las_error(path, exc) from exc
+    if not has_rgb:
+        color, depth = "none", None
+    elif color_max == 0:
+        color, depth = "all-zero", None
+    else:
+        depth = 16 if color_max > 255 else 8
+        color = f"{depth}-bit"
+    return {
+        "path": str(path),
+        "format": "laz" if str(path).lower().endswith(".laz") else "las",
+        "point_count": int(h.point_count),
+        "bounds": {"min": lo.tolist(), "max": hi.tolist()} if seen else None,
+        "point_format": int(fmt.id),
+        "version": str(h.version),
+        "dimensions": list(fmt.dimension_names),
+        "extra_dimensions": list(fmt.extra_dimension_names),
+        "color": color,
+        "color_depth": depth,
+        "class_histogram": {int(c): int(k) for c, k in enumerate(hist) if k},
+        "crs": crs_text(h),
+        "scales": [float(s) for s in h.scales],
+        "offsets": [float(o) for o in h.offsets],
+    }

@@ -1,0 +1,120 @@
+"""Pipelines: an ordered list of stages run over a Cloud, with timing, counts and label transfer.
+
+Each stage sees the working set (the points every earlier stage kept). A 'filter' stage decides
+the points it removes (they get its removed class, non-target); a 'subsample' stage only skips
+points for speed, and those take the result of their nearest processed point at the end
+(METHODS.md R1). The last labelling stage's labels hold for the points that reached it; points
+that reach the end with no label get the pipeline's default class.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from roadx_ti.cloud import Cloud
+from roadx_ti.stages import stage_class
+from roadx_ti.stages.base import CLASS_OTHER, StageContext
+
+log = logging.getLogger("roadx_ti")
+
+# What a pipeline runs when a config lists no stages (defaults of each stage's options).
+DEFAULT_STAGES = {
+    "road": ["uniform_downsample", "sor", "ransac_planes", "grid_slope", "cloth_smooth", "color_growing"],
+    "roof": ["cloth_ground", "roof_seeds", "roof_growing", "roof_filter"],
+    "ground": ["cloth_ground"],
+}
+DEFAULT_OPTIONS = {"uniform_downsample": {"ratio": 1.0}}
+
+
+@dataclass
+class PipelineResult:
+    classification: np.ndarray        # uint8 per input point
+    decided_by: np.ndarray            # uint8 per input point: 0 = reached the end, i = stage i removed it
+    segment_id: np.ndarray            # int32 per input point, -1 for none
+    processed: np.ndarray             # bool per input point: not skipped by downsampling
+    stages: list = field(default_factory=list)   # per-stage summary rows
+    seconds: float = 0.0
+
+
+def build_stages(stage_specs):
+    """[(name, options)] -> stage objects."""
+    return [stage_class(name)(options) for name, options in stage_specs]
+
+
+def default_stage_specs(pipeline: str):
+    return [(name, stage_class(name).Options(**DEFAULT_OPTIONS.get(name, {})))
+            for name in DEFAULT_STAGES[pipeline]]
+
+
+def run(cloud: Cloud, stages, *, ctx: StageContext | None = None, truth: np.ndarray | None = None,
+        default_class: int = CLASS_OTHER, progress=None) -> PipelineResult:
+    """Run ``stages`` over ``cloud``. ``truth`` (bool per point, optional) adds per-stage counts of
+    target and non-target points removed, for accuracy reports."""
+    ctx = ctx or StageContext()
+    n = cloud.n
+    classification = np.full(n, default_class, np.uint8)
+    decided_by = np.zeros(n, np.uint8)
+    segment_id = np.full(n, -1, np.int32)
+    processed = np.ones(n, bool)
+    working = np.arange(n, dtype=np.int64)
+    rows = []
+    t_start = time.perf_counter()
+    for number, stage in enumerate(stages, start=1):
+        sub = cloud if len(working) == n else cloud.subset(working)
+        t0 = time.perf_counter()
+        if len(working):
+            result = stage.run(sub, ctx)
+        else:
+            from roadx_ti.stages.base import StageResult
+            result = StageResult()
+        seconds = time.perf_counter() - t0
+        row = {"stage": stage.name, "index": number, "points_in": int(len(working)),
+               "seconds": round(seconds, 4), "info": result.info}
+        if result.labels is not None:
+            classification[working] = result.labels
+        if result.segment_id is not None:
+            segment_id[working] = result.segment_id
+        for key, values in result.point_data.items():
+            ctx.point_data[key] = values
+        if result.keep is not None:
+            keep = np.asarray(result.keep, bool)
+            removed = working[~keep]
+            if result.mode == "subsample":
+                processed[removed] = False
+            else:
+                classification[removed] = result.removed_class
+                decided_by[removed] = number
+            if truth is not None:
+                row["removed_target"] = int(truth[removed].sum())
+                row["removed_other"] = int(len(removed) - row["removed_target"])
+            working = working[keep]
+            ctx.point_data = {k: v[keep] for k, v in ctx.point_data.items()}
+        row["points_out"] = int(len(working))
+        rows.append(row)
+        log.info("[%d/%d] %s: %d -> %d points in %.2f s", number, len(stages), stage.name,
+                 row["points_in"], row["points_out"], seconds)
+        if progress is not None:
+            progress(stage.name, number, len(stages))
+    if not processed.all():
+        _transfer_labels(cloud, processed, classification, decided_by, segment_id)
+    return PipelineResult(classification, decided_by, segment_id, processed, rows,
+                          time.perf_counter() - t_start)
+
+
+def _transfer_labels(cloud, processed, classification, decided_by, segment_id):
+    """Points skipped by downsampling take the result of their nearest processed point."""
+    from scipy.spatial import cKDTree
+
+    source = np.flatnonzero(processed)
+    target = np.flatnonzero(~processed)
+    if len(source) == 0:
+        return
+    tree = cKDTree(cloud.xyz[source])
+    _, nearest = tree.query(cloud.xyz[target], k=1, workers=-1)
+    donor = source[nearest]
+    classification[target] = classification[donor]
+    decided_by[target] = decided_by[donor]
+    segment_id[target] = segment_id[donor]

@@ -1,0 +1,58 @@
+"""R1 downsampling: uniform (deterministic stride) and voxel (a real point per voxel).
+
+Both are 'subsample' stages: the skipped points are not decided here; after the pipeline they take
+the label of their nearest processed point (METHODS.md R1, label transfer).
+"""
+from __future__ import annotations
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from roadx_ti.cloud import Cloud
+from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
+
+
+def uniform_indices(n: int, target: int) -> np.ndarray:
+    """Point j of the output is input point floor(j * n / target) (METHODS.md R1)."""
+    target = min(max(int(target), 0), n)
+    return (np.arange(target, dtype=np.int64) * n // max(target, 1)).astype(np.int64)
+
+
+class UniformOptions(StageOptions):
+    target_points: int | None = Field(None, ge=1, description="keep this many points")
+    ratio: float | None = Field(None, gt=0, le=1, description="keep this fraction of the points")
+
+    @model_validator(mode="after")
+    def _one_of(self):
+        if (self.target_points is None) == (self.ratio is None):
+            raise ValueError("give exactly one of target_points or ratio")
+        return self
+
+
+class UniformDownsample(Stage):
+    name = "uniform_downsample"
+    Options = UniformOptions
+
+    def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
+        n = cloud.n
+        target = self.options.target_points or int(round(n * self.options.ratio))
+        keep = np.zeros(n, bool)
+        keep[uniform_indices(n, min(target, n))] = True
+        return StageResult(keep=keep, mode="subsample", info={"target_points": int(keep.sum())})
+
+
+class VoxelOptions(StageOptions):
+    voxel_size: float = Field(..., gt=0, description="voxel edge (m)")
+
+
+class VoxelDownsample(Stage):
+    name = "voxel_downsample"
+    Options = VoxelOptions
+
+    def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
+        from roadx_ti.kernels.grid import voxel_downsample
+
+        keep = np.zeros(cloud.n, bool)
+        if cloud.n:
+            keep[voxel_downsample(cloud.xyz, self.options.voxel_size)] = True
+        return StageResult(keep=keep, mode="subsample", info={"voxels": int(keep.sum())})

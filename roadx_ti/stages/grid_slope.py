@@ -1,0 +1,29 @@
+"""R4 grid min-height slope / height-difference filter (kernel: roadx_ti.kernels.grid_min)."""
+from __future__ import annotations
+
+from pydantic import Field
+
+from roadx_ti.cloud import Cloud
+from roadx_ti.kernels.grid_min import slope_filter
+from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
+
+
+class GridSlopeOptions(StageOptions):
+    step: float = Field(0.5, gt=0, description="grid cell edge (m); paper Step = 0.5")
+    slope_max: float = Field(0.1, gt=0, description="S_t: max slope dh / horizontal distance to the "
+                             "cell's lowest point (dimensionless); paper 0.1")
+    dh_max: float = Field(1.0, gt=0, description="dh_t: max height above the cell's lowest point (m); paper 1")
+
+
+class GridSlope(Stage):
+    name = "grid_slope"
+    Options = GridSlopeOptions
+
+    def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
+        if cloud.n == 0:
+            return StageResult()
+        o = self.options
+        keep, height = slope_filter(cloud.xyz, o.step, o.slope_max, o.dh_max)
+        keep = keep.astype(bool)
+        return StageResult(keep=keep, point_data={"height_above_cell_min": height},
+                           info={"removed": int((~keep).sum())})

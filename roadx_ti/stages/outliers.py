@@ -1,0 +1,38 @@
+"""R2 statistical outlier removal (kernel: roadx_ti.kernels.outliers.sor_keep)."""
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+
+from roadx_ti.cloud import Cloud
+from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
+
+
+class SorOptions(StageOptions):
+    k: int = Field(20, ge=1, le=512, description="neighbours per point (paper k = 500)")
+    std_ratio: float = Field(1.0, gt=0, description="std multiplier (paper std = 1)")
+    mode: Literal["two_sided", "upper"] = Field(
+        "upper", description="two_sided: keep mu - s*sigma < d < mu + s*sigma (paper); "
+        "upper: keep d < mu + s*sigma (PCL/Open3D)")
+    convention: Literal["paper", "open3d"] = Field(
+        "paper", description="paper: k neighbours excluding p, population sigma; open3d: p counts "
+        "as one of the k, sample sigma, and d = 0 is dropped (point-for-point Open3D)")
+
+
+class StatisticalOutlierRemoval(Stage):
+    name = "sor"
+    Options = SorOptions
+
+    def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
+        from roadx_ti.kernels.outliers import sor_keep
+
+        o = self.options
+        k = min(o.k, cloud.n - 1)
+        if k < 1:
+            return StageResult(info={"skipped": "fewer than 2 points"})
+        if k < o.k:
+            ctx.log.warning("sor: k = %d but only %d points: using k = %d", o.k, cloud.n, k)
+        keep = np.asarray(sor_keep(cloud.xyz, k, o.std_ratio, mode=o.mode, convention=o.convention), bool)
+        return StageResult(keep=keep, info={"removed": int((~keep).sum()), "k": k})

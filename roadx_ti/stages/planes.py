@@ -1,0 +1,77 @@
+"""R3 iterative RANSAC removal of non-road planes (kernel: roadx_ti.kernels.ransac).
+
+Reading of METHODS.md R3: repeatedly find the best plane among the unmatched points (many
+hypotheses scored in parallel, least-squares refit); stop when it has fewer than ``min_inliers``
+points, when fewer than 3 unmatched points remain, or after ``max_planes`` planes. Each accepted
+plane is classified: tilted more than ``max_tilt_deg`` from horizontal -> Z class (walls, poles),
+removed; near-horizontal with the median height of its inliers above the local ground reference
+greater than ``dh_max`` -> XY class (roofs, terraces), removed; otherwise ground-level, kept. Its
+points are marked matched either way, so it is not found again.
+The ground reference is the lowest point of a coarse grid cell (``ground_cell``, larger than a
+building, so a roof cell still sees the ground beside it).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydantic import Field
+
+from roadx_ti.cloud import Cloud
+from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
+
+
+class RansacOptions(StageOptions):
+    distance_threshold: float = Field(0.1, gt=0, description="R_t: inlier distance to the plane (m); the "
+                                      "paper's '10' has no unit and cannot be metres")
+    min_inliers: int = Field(100, ge=3, description="R_n: a plane needs more than this many points")
+    hypotheses: int = Field(1000, ge=1, description="R_m: plane hypotheses tried per plane search")
+    max_planes: int = Field(50, ge=1, description="at most this many planes are extracted")
+    max_tilt_deg: float = Field(45.0, gt=0, lt=90, description="a plane whose normal tilts more than this "
+                                "from vertical is Z class (walls) and removed (degrees)")
+    dh_max: float = Field(1.0, gt=0, description="a near-horizontal plane whose inliers lie higher than this "
+                          "above the ground reference is XY class and removed (m)")
+    ground_cell: float = Field(30.0, gt=0, description="cell edge of the ground reference grid (m)")
+
+
+class RansacPlanes(Stage):
+    name = "ransac_planes"
+    Options = RansacOptions
+
+    def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
+        from roadx_ti.kernels.grid_min import cell_minimum
+        from roadx_ti.kernels.ransac import fit_plane
+
+        o = self.options
+        xyz = cloud.xyz
+        cell, cell_lowest, _ = cell_minimum(xyz, o.ground_cell)
+        height_above_ground = xyz[:, 2] - xyz[cell_lowest[cell], 2]
+        unmatched = np.ones(cloud.n, bool)
+        keep = np.ones(cloud.n, bool)
+        planes = []
+        cos_tilt = math.cos(math.radians(o.max_tilt_deg))
+        for number in range(o.max_planes):
+            if unmatched.sum() < 3:
+                break
+            fit = fit_plane(xyz, o.distance_threshold, hypotheses=o.hypotheses,
+                            seed=ctx.seed + number, active=unmatched.astype(np.uint8))
+            inliers = np.asarray(fit.inliers, bool) & unmatched
+            if inliers.sum() <= o.min_inliers:
+                break
+            normal_z = abs(float(fit.plane[2]))
+            median_height = float(np.median(height_above_ground[inliers]))
+            if normal_z < cos_tilt:
+                kind = "Z"
+            elif median_height > o.dh_max:
+                kind = "XY"
+            else:
+                kind = "ground"
+            if kind != "ground":
+                keep[inliers] = False
+            unmatched[inliers] = False
+            planes.append({"plane": [round(float(v), 6) for v in fit.plane], "points": int(inliers.sum()),
+                           "class": kind, "median_height": round(median_height, 3)})
+        info = {"planes": len(planes), "removed": int((~keep).sum()),
+                "by_class": {c: sum(p["points"] for p in planes if p["class"] == c) for c in ("Z", "XY", "ground")},
+                "plane_list": planes}
+        return StageResult(keep=keep, info=info)

@@ -1,0 +1,176 @@
+"""P3 classified region growing: the data-parallel kernels equal a sequential BFS reference."""
+import math
+from collections import deque
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from roadx_ti.kernels import labels, seeds
+
+ANGLE_MAX_DEG = 20.0
+COLOR_MAX = 20.5  # colours are integers, so no squared distance sits on the threshold
+
+
+def reference_edges(knn, normal, rgb, veg, active, angle_max_deg, color_max):
+    """Growth edge rule of kernels/seeds.py in float64, written out per edge."""
+    cos_max = math.cos(math.radians(angle_max_deg))
+    n, k = knn.shape
+    ok = np.zeros((n, k), bool)
+    margin = np.inf
+    for i in range(n):
+        for j in range(k):
+            q = knn[i, j]
+            if q < 0 or not active[i] or not active[q]:
+                continue
+            dot = abs(float(np.dot(normal[i].astype(np.float64), normal[q].astype(np.float64))))
+            margin = min(margin, abs(dot - cos_max))
+            good = dot >= cos_max
+            if good and rgb is not None and (veg[i] or veg[q]):
+                good = float(np.sum((rgb[i].astype(np.float64) - rgb[q]) ** 2)) < color_max ** 2
+            ok[i, j] = good
+    return ok, margin
+
+
+def reference_growing(knn, edge_ok, seed, curvature, expand_curvature_max, active):
+    """Sequential semantics: BFS from each seed through expandable points, then leaves."""
+    n, k = knn.shape
+    adjacency = [set() for _ in range(n)]
+    for i in range(n):
+        for j in range(k):
+            if edge_ok[i, j]:
+                adjacency[i].add(int(knn[i, j]))
+                adjacency[int(knn[i, j])].add(i)
+    expandable = active & (seed | (curvature < expand_curvature_max))
+    label = np.full(n, -1, np.int64)
+    for s in range(n):
+        if not (seed[s] and expandable[s]) or label[s] >= 0:
+            continue
+        members, queue = {s}, deque([s])
+        while queue:
+            p = queue.popleft()
+            for q in adjacency[p]:
+                if expandable[q] and q not in members:
+                    members.add(q)
+                    queue.append(q)
+        label[list(members)] = min(members)
+    out = label.copy()
+    for p in range(n):
+        if active[p] and not expandable[p]:
+            roofs = [label[q] for q in adjacency[p] if expandable[q] and label[q] >= 0]
+            out[p] = min(roofs) if roofs else -1
+    return out
+
+
+def scene(seed=0):
+    """Gable roof (two planes), a green flat roof, a wall and a tree; colours and PCA normals."""
+    rng = np.random.default_rng(seed)
+    parts, colours, veg_like = [], [], []
+
+    def add(xyz, rgb):
+        parts.append(xyz)
+        colours.append(rgb)
+
+    m = 160
+    u, v = rng.uniform(0, 6, m), rng.uniform(0, 3, m)
+    add(np.column_stack([u, v, 6 + 0.6 * v]), np.tile([150, 90, 80], (m, 1)) + rng.integers(-6, 7, (m, 3)))
+    u, v = rng.uniform(0, 6, m), rng.uniform(3, 6, m)
+    add(np.column_stack([u, v, 6 + 0.6 * (6 - v)]), np.tile([150, 90, 80], (m, 1)) + rng.integers(-6, 7, (m, 3)))
+    u, v = rng.uniform(8, 13, m), rng.uniform(0, 5, m)
+    add(np.column_stack([u, v, np.full(m, 4.0)]), np.tile([60, 140, 50], (m, 1)) + rng.integers(-4, 5, (m, 3)))
+    w, h = rng.uniform(0, 6, 80), rng.uniform(0, 6, 80)
+    add(np.column_stack([w, np.full(80, -0.2), h]), np.tile([200, 200, 200], (80, 1)))
+    tree = rng.normal([3, 9, 5], 1.2, (200, 3))
+    add(tree, np.column_stack([rng.integers(20, 90, 200), rng.integers(80, 200, 200), rng.integers(10, 80, 200)]))
+    xyz = np.concatenate(parts).astype(np.float32) + rng.normal(0, 0.01, (sum(map(len, parts)), 3)).astype(np.float32)
+    rgb = np.clip(np.concatenate(colours), 0, 255).astype(np.float32)
+    return xyz, rgb
+
+
+def pca(xyz, knn):
+    hood = np.concatenate([xyz[:, None, :], xyz[knn]], axis=1).astype(np.float64)
+    centred = hood - hood.mean(axis=1, keepdims=True)
+    w, v = np.linalg.eigh(np.einsum("nki,nkj->nij", centred, centred) / hood.shape[1])
+    normal = v[:, :, 0]
+    normal *= np.where(normal[:, 2:3] < 0, -1, 1)
+    curvature = w[:, 0] / np.maximum(w.sum(axis=1), 1e-30)
+    return normal.astype(np.float32), curvature.astype(np.float32)
+
+
+def prepared(seed=0, k=10):
+    xyz, rgb = scene(seed)
+    _, idx = cKDTree(xyz).query(xyz, k=k + 1)
+    knn = idx[:, 1:].astype(np.int32)
+    normal, curvature = pca(xyz, knn)
+    return xyz, rgb, knn, normal, curvature
+
+
+@pytest.mark.parametrize("use_color", [True, False])
+@pytest.mark.parametrize("expand_curvature_max", [0.02, None])
+def test_growing_equals_sequential_reference(ti_arch, use_color, expand_curvature_max):
+    from roadx_ti.kernels.vegetation import vegetation_mask
+    xyz, rgb, knn, normal, curvature = prepared()
+    n = len(xyz)
+    rng = np.random.default_rng(5)
+    seed = (curvature < 0.01) & (rng.random(n) < 0.05)
+    active = rng.random(n) > 0.03
+    veg = vegetation_mask(rgb).astype(bool)
+    assert veg[320:480].all() and veg[560:].mean() > 0.8  # the green roof and the tree are green
+    colour_args = dict(rgb=rgb, vegetation=veg.astype(np.uint8), color_max=COLOR_MAX) if use_color else {}
+    edge_ok = seeds.roof_growth_edges(knn, normal, angle_max_deg=ANGLE_MAX_DEG,
+                                      active=active.astype(np.uint8), **colour_args)
+    want_edges, margin = reference_edges(knn, normal, rgb if use_color else None, veg, active,
+                                         ANGLE_MAX_DEG, COLOR_MAX)
+    assert margin > 1e-5, "test data has an edge on the angle threshold"
+    np.testing.assert_array_equal(edge_ok.astype(bool), want_edges)
+
+    got = seeds.grow_roof_segments(knn, edge_ok, seed.astype(np.uint8), curvature=curvature,
+                                   expand_curvature_max=expand_curvature_max,
+                                   active=active.astype(np.uint8))
+    expand_max = np.inf if expand_curvature_max is None else expand_curvature_max
+    want = reference_growing(knn, want_edges, seed, curvature, expand_max, active)
+    np.testing.assert_array_equal(got, want)
+    assert (got >= 0).sum() > 0
+    # same input, same output (no timing leaks)
+    again = seeds.grow_roof_segments(knn, edge_ok, seed.astype(np.uint8), curvature=curvature,
+                                     expand_curvature_max=expand_curvature_max,
+                                     active=active.astype(np.uint8))
+    np.testing.assert_array_equal(again, got)
+
+
+def test_random_graph_equals_reference(ti_arch):
+    """Random graphs with random edge masks: many small components, leaves with several roofs."""
+    rng = np.random.default_rng(11)
+    n, k = 600, 6
+    knn = rng.integers(0, n, (n, k)).astype(np.int32)
+    knn[rng.random((n, k)) < 0.1] = -1
+    edge_ok = ((rng.random((n, k)) < 0.25) & (knn >= 0)).astype(np.uint8)
+    seed = rng.random(n) < 0.05
+    curvature = rng.uniform(0, 0.1, n).astype(np.float32)
+    active = np.ones(n, bool)
+    got = seeds.grow_roof_segments(knn, edge_ok, seed.astype(np.uint8), curvature=curvature,
+                                   expand_curvature_max=0.05)
+    want = reference_growing(knn, edge_ok.astype(bool), seed, curvature, 0.05, active)
+    np.testing.assert_array_equal(got, want)
+    compact, count = labels.relabel_compact(got)
+    assert count == len(np.unique(want[want >= 0]))
+
+
+def test_colour_rule_keeps_green_roof_and_stops_in_foliage(ti_arch):
+    from roadx_ti.kernels.vegetation import vegetation_mask
+    xyz, rgb, knn, normal, curvature = prepared(seed=1)
+    veg = vegetation_mask(rgb)
+    seed = np.zeros(len(xyz), np.uint8)
+    seed[[0, 160, 320]] = 1          # one seed on each roof plane
+    seed[480 + 80:] = curvature[480 + 80:] < 0.02  # tree points that look locally flat
+    edge_ok = seeds.roof_growth_edges(knn, normal, angle_max_deg=ANGLE_MAX_DEG, rgb=rgb,
+                                      vegetation=veg, color_max=COLOR_MAX)
+    got = seeds.grow_roof_segments(knn, edge_ok, seed, curvature=curvature, expand_curvature_max=0.02)
+    green_roof = got[320:480]
+    assert (green_roof == green_roof[0]).mean() > 0.95 and green_roof[0] >= 0
+    # the two gable planes are separate segments
+    assert np.bincount(got[:160][got[:160] >= 0]).argmax() != np.bincount(got[160:320][got[160:320] >= 0]).argmax()
+    # foliage segments stay tiny
+    tree_labels = got[560:][got[560:] >= 0]
+    if len(tree_labels):
+        assert np.bincount(tree_labels).max() < 10
