@@ -9,7 +9,7 @@ Follows the `cloth-simulation-filter` package (jianboqi/CSF) step by step, in it
   particle to the right in the row, then left, then towards row 0, then up the column) and, where
   row and column are empty, the nearest filled particle in the 5x5 constraint neighbourhood,
   repeated outwards;
-- per iteration: Verlet step (damping 0.01, gravity 0.2 * time_step^2) of movable particles, then
+- per iteration: Verlet step (damping 0.01, gravity 0.2 * time_step^4, as the package does it) of movable particles, then
   every particle's constraint pass over its 16 neighbours (distance 1 and 2 in x, y and diagonal)
   with the package's rigidness coefficients, max displacement of movable particles, collision
   (a particle below its collision height is put on it and becomes immovable); stop after
@@ -20,9 +20,9 @@ Follows the `cloth-simulation-filter` package (jianboqi/CSF) step by step, in it
 - a point is ground when |z - bilinear cloth height| < class_threshold.
 
 The package runs the constraint passes as one sequential (Gauss-Seidel) sweep in particle order.
-Here the same per-particle passes run in 25 colour classes ((i mod 5, j mod 5)) in row-major
-colour order: passes of one class touch disjoint particles, so the result is deterministic and
-independent of thread timing, and each pass does exactly what the package's pass does.
+Here the same per-particle passes are swept in particle order within bands of BAND_ROWS rows;
+every other band runs in parallel (they touch disjoint rows), then the rest, so the result is
+deterministic and differs from the package only in the order at band borders.
 
 Everything runs on the device; the host reads one stop flag every few iterations.
 """
@@ -53,9 +53,10 @@ _DOUBLE_MOVE = (0, 0.3, 0.42, 0.468, 0.4872, 0.4949, 0.498, 0.4992, 0.4997, 0.49
 # neighbour offsets (di, dj) in the order of the package's per-particle neighbour list
 _NEIGHBOUR_DI = (-1, -1, -1, 0, 1, 1, 0, 1, -2, -2, -2, 0, 2, 2, 0, 2)
 _NEIGHBOUR_DJ = (-1, 0, 1, -1, -1, 0, 1, 1, -2, 0, 2, -2, -2, 0, 2, 2)
-_COLOURS = 5               # passes whose particles differ by >= 5 in i or j touch disjoint sets
+BAND_ROWS = 32             # rows swept in particle order by one thread (>= 4 for disjoint bands)
 
 _NO_POINT = -1
+_FILLED_BY_SEARCH = 2
 _KEY_MAX = 2**31 - 1
 
 
@@ -191,13 +192,16 @@ def _scanline_columns(cell_point: ti.types.ndarray(dtype=ti.i32, ndim=1),
 
 
 @ti.kernel
-def _fill_from_neighbours(height: ti.types.ndarray(dtype=ti.f32, ndim=1),
+def _fill_from_neighbours(cell_point: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                          height: ti.types.ndarray(dtype=ti.f32, ndim=1),
                           filled: ti.types.ndarray(dtype=ti.i32, ndim=1),
                           next_height: ti.types.ndarray(dtype=ti.f32, ndim=1),
                           next_filled: ti.types.ndarray(dtype=ti.i32, ndim=1),
                           width: ti.i32, rows: ti.i32) -> ti.i32:
-    # particles whose row and column are empty: first filled neighbour in list order (one ring
-    # of growth per launch, double buffered so the result does not depend on thread order)
+    # particles whose row and column are empty (corners of the buffer): the first filled
+    # neighbour in the package's list order, one ring per launch, double buffered so the result
+    # does not depend on thread order. The package searches breadth-first for a particle holding
+    # a point instead; only these few buffer particles, which no point interpolates, can differ.
     remaining = 0
     for c in height:
         next_height[c] = height[c]
@@ -211,10 +215,12 @@ def _fill_from_neighbours(height: ti.types.ndarray(dtype=ti.f32, ndim=1),
                     o = _neighbour_offset(k)
                     ni = i + o[0]
                     nj = j + o[1]
-                    if 0 <= ni < width and 0 <= nj < rows and filled[nj * width + ni] == 1:
-                        next_height[c] = height[nj * width + ni]
-                        next_filled[c] = 1
-                        found = 1
+                    if 0 <= ni < width and 0 <= nj < rows:
+                        q = nj * width + ni
+                        if filled[q] != 0:
+                            next_height[c] = height[q]
+                            next_filled[c] = _FILLED_BY_SEARCH
+                            found = 1
             if found == 0:
                 remaining += 1
     return remaining
@@ -250,36 +256,57 @@ def _verlet_step(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
 
 
 @ti.kernel
-def _constraint_colour(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
-                       movable: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                       state: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                       width: ti.i32, rows: ti.i32, ci: ti.i32, cj: ti.i32,
-                       single_move: ti.f32, double_move: ti.f32):
-    # the package's satisfyConstraintSelf for every particle (ci + 5a, cj + 5b)
-    per_row = (width - ci + _COLOURS - 1) // _COLOURS
-    per_col = (rows - cj + _COLOURS - 1) // _COLOURS
-    for t in range(per_row * per_col):
+def _mark_active(movable: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                 active: ti.types.ndarray(dtype=ti.i32, ndim=1), width: ti.i32, rows: ti.i32):
+    # a constraint pass does something only where the particle or a neighbour is movable;
+    # movability only ever ends, so a flag computed now stays a safe superset later
+    for c in movable:
+        i = c % width
+        j = c // width
+        any_movable = movable[c]
+        for k in range(16):
+            o = _neighbour_offset(k)
+            ni = i + o[0]
+            nj = j + o[1]
+            if 0 <= ni < width and 0 <= nj < rows:
+                any_movable |= movable[nj * width + ni]
+        active[c] = any_movable
+
+
+@ti.kernel
+def _constraint_bands(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
+                      movable: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                      active: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                      state: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                      width: ti.i32, rows: ti.i32, band_rows: ti.i32, phase: ti.i32,
+                      single_move: ti.f32, double_move: ti.f32):
+    # the package's satisfyConstraintSelf, swept in particle order within bands of rows; bands of
+    # one phase (every other band) touch disjoint rows, so they run in parallel without races
+    bands = (rows + band_rows - 1) // band_rows
+    for t in range((bands - phase + 1) // 2):
         if state[0] == 0:
-            i = ci + _COLOURS * (t % per_row)
-            j = cj + _COLOURS * (t // per_row)
-            c = j * width + i
-            for k in range(16):
-                o = _neighbour_offset(k)
-                ni = i + o[0]
-                nj = j + o[1]
-                if 0 <= ni < width and 0 <= nj < rows:
-                    q = nj * width + ni
-                    mp = movable[c]
-                    mq = movable[q]
-                    if mp == 1 or mq == 1:
-                        d = pos[q] - pos[c]
-                        if mp == 1 and mq == 1:
-                            pos[c] += d * double_move
-                            pos[q] -= d * double_move
-                        elif mp == 1:
-                            pos[c] += d * single_move
-                        else:
-                            pos[q] -= d * single_move
+            b = phase + 2 * t
+            for j in range(b * band_rows, ti.min(rows, (b + 1) * band_rows)):
+                for i in range(width):
+                    c = j * width + i
+                    if active[c] == 1:
+                        for k in range(16):
+                            o = _neighbour_offset(k)
+                            ni = i + o[0]
+                            nj = j + o[1]
+                            if 0 <= ni < width and 0 <= nj < rows:
+                                q = nj * width + ni
+                                mp = movable[c]
+                                mq = movable[q]
+                                if mp == 1 or mq == 1:
+                                    d = pos[q] - pos[c]
+                                    if mp == 1 and mq == 1:
+                                        pos[c] += d * double_move
+                                        pos[q] -= d * double_move
+                                    elif mp == 1:
+                                        pos[c] += d * single_move
+                                    else:
+                                        pos[q] -= d * single_move
 
 
 @ti.kernel
@@ -509,7 +536,7 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
     spare_filled = ndarray(np.int32, (cells,))
     remaining = -1
     while True:   # a few rings at most: only particles whose row and column are both empty
-        left = _fill_from_neighbours(height, filled, spare_height, spare_filled, cols, rows)
+        left = _fill_from_neighbours(cell_point, height, filled, spare_height, spare_filled, cols, rows)
         height, spare_height = spare_height, height
         filled, spare_filled = spare_filled, filled
         if left == 0 or left == remaining:
@@ -522,19 +549,22 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
     movable = ndarray(np.int32, (cells,))
     state = ndarray(np.int32, (3,))
     _init_cloth(pos, old_pos, movable, state, float(-lo[2] + CLOTH_START_ABOVE))
-    acceleration = -GRAVITY * time_step * time_step
+    # the package pre-multiplies gravity by time_step^2 and multiplies by it again in the
+    # Verlet step: the displacement per step is gravity * time_step^4
+    acceleration = -GRAVITY * time_step ** 4
     k = int(rigidness)
     single = _SINGLE_MOVE[k] if k <= 14 else 1.0
     double = _DOUBLE_MOVE[k] if k <= 14 else 0.5
+    active = ndarray(np.int32, (cells,))
     done = 0
     while done < iterations:
         batch = min(ITERATIONS_PER_CHECK, iterations - done)
+        _mark_active(movable, active, cols, rows)
         for _ in range(batch):
             _verlet_step(pos, old_pos, movable, state, acceleration)
-            for cj in range(_COLOURS):
-                for ci in range(_COLOURS):
-                    if ci < cols and cj < rows:
-                        _constraint_colour(pos, movable, state, cols, rows, ci, cj, single, double)
+            for phase in range(2):
+                _constraint_bands(pos, movable, active, state, cols, rows, BAND_ROWS, phase,
+                                  single, double)
             _displacement_and_collision(pos, old_pos, movable, height, state)
             _stop_test(state, int(iterations))
         done += batch

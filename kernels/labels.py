@@ -22,31 +22,32 @@ from .common import as_ndarray, is_ndarray, like_input, ndarray, to_numpy
 
 # Verification rounds never exceed a handful; this bound only guards against a logic error.
 _MAX_ROUNDS = 64
+# Bound on one edge's hooking retries within a pass; an edge left unjoined makes another round.
+_MAX_HOOK_TRIES = 1 << 20
 
 
 @ti.func
 def _find(parent: ti.template(), x: ti.i32) -> ti.i32:
-    """Root of ``x``, halving the path on the way: each visited node's parent is lowered to its
-    grandparent with atomic_min (an ancestor, so the tree stays within the component)."""
+    """Root of ``x``, halving the path on the way (each visited node's parent is set to its
+    grandparent, an ancestor, so trees never split). The halving store is a plain store on
+    purpose: Mesa lavapipe loses later stores of a thread after an atomic inside this loop."""
     node = x
-    while True:
-        p = parent[node]
-        if p == node:
-            break
-        gp = parent[p]
-        if gp != p:
-            ti.atomic_min(parent[node], gp)
+    while parent[node] != node:
+        gp = parent[parent[node]]
+        parent[node] = gp
         node = gp
     return node
 
 
 @ti.func
 def _unite(parent: ti.template(), a: ti.i32, b: ti.i32) -> ti.i32:
-    """Join the trees of ``a`` and ``b``; returns 1 when a parent was written."""
+    """Join the trees of ``a`` and ``b`` by hooking the larger root onto the smaller with
+    atomic_min, retrying when another thread hooked that root first; returns 1 when a parent
+    was written."""
     wrote = 0
     x = a
     y = b
-    while True:
+    for _ in range(_MAX_HOOK_TRIES):
         rx = _find(parent, x)
         ry = _find(parent, y)
         if rx == ry:
@@ -81,12 +82,15 @@ def _hook_neighbors(neighbors: ti.types.ndarray(dtype=ti.i32, ndim=2),
     n = parent.shape[0]
     for i, k in ti.ndrange(neighbors.shape[0], neighbors.shape[1]):
         j = neighbors[i, k]
-        ok = j >= 0 and j < n and parent[i] >= 0
-        if ok and use_edge_ok != 0:
-            ok = edge_ok[i, k] != 0
-        if ok and parent[j] >= 0:
-            if _unite(parent, i, j) != 0:
-                changed[0] = 1
+        # Nested ifs: Taichi's ``and`` does not short-circuit, and parent[-1] must not be read.
+        if j >= 0 and j < n:
+            if parent[i] >= 0 and parent[j] >= 0:
+                ok = 1
+                if use_edge_ok != 0:
+                    ok = ti.i32(edge_ok[i, k])
+                if ok != 0:
+                    if _unite(parent, i, j) != 0:
+                        changed[0] = 1
 
 
 @ti.kernel
@@ -135,22 +139,24 @@ def _union_rounds(parent, hook) -> int:
     for rounds in range(1, _MAX_ROUNDS + 1):
         changed.fill(0)
         hook(changed)
-        ti.sync()
         _compress(parent)
-        ti.sync()
-        if int(changed.to_numpy()[0]) == 0:
+        if int(changed[0]) == 0:
             return rounds
     raise RuntimeError("union-find did not converge; this is a bug")
 
 
 def _components(neighbors, edge_ok=None, active=None):
-    """connected_components returning (labels ndarray, rounds) for tests and callers that
-    want to see convergence."""
+    """connected_components returning (labels, rounds), for tests and callers that want to
+    see convergence. Labels come back as an ndarray, or as numpy for an input with no edge
+    slots (Taichi has no empty ndarrays)."""
+    n, k = int(neighbors.shape[0]), int(neighbors.shape[1])
+    if n == 0 or k == 0:
+        out = np.arange(n, dtype=np.int32)
+        if active is not None:
+            out[to_numpy(active) == 0] = -1
+        return out, 0
     nbr = as_ndarray(neighbors, "int32")
-    n = int(nbr.shape[0])
     parent = ndarray(ti.i32, (n,))
-    if n == 0:
-        return parent, 0
     act = as_ndarray(active, "uint8") if active is not None else ndarray(ti.u8, (1,))
     _init_parent(act, int(active is not None), parent)
     ok = as_ndarray(edge_ok, "uint8") if edge_ok is not None else ndarray(ti.u8, (1, 1))
@@ -168,6 +174,8 @@ def connected_components(neighbors, edge_ok=None, active=None):
     active point's component, -1 for inactive points (numpy or ndarray, as ``neighbors``).
     """
     parent, _ = _components(neighbors, edge_ok, active)
+    if not is_ndarray(parent):
+        return parent
     return like_input(parent, neighbors)
 
 
@@ -188,12 +196,12 @@ def union_edge_list(n, src, dst):
 def color_edges(neighbors, rgb, threshold):
     """uint8 (n, k): 1 where the neighbour exists and the Euclidean RGB distance between the
     two points is below ``threshold`` (PCL RegionGrowingRGB's point colour threshold)."""
+    if int(neighbors.shape[0]) == 0 or int(neighbors.shape[1]) == 0:
+        return np.zeros(tuple(neighbors.shape), np.uint8)
     nbr = as_ndarray(neighbors, "int32")
-    col = as_ndarray(rgb, "float32")
     out = ndarray(ti.u8, tuple(nbr.shape))
-    if int(nbr.shape[0]) and int(nbr.shape[1]):
-        t = np.float32(threshold)
-        _color_edges(nbr, col, float(t * t), out)
+    t = np.float32(threshold)
+    _color_edges(nbr, as_ndarray(rgb, "float32"), float(t * t), out)
     return like_input(out, neighbors)
 
 

@@ -6,13 +6,13 @@ lie inside the cube, so once the k-th candidate is closer than s(L) the answer i
 otherwise the cube grows by one ring. Far from everything (outliers), once the cube would hold
 more cells than a brute scan costs, the query scans all points instead.
 
-Neighbours are ordered by (squared distance, point index): ties break by index, so results are
+Neighbours are ordered by (float32 distance, point index): ties break by index, so results are
 deterministic whatever the scan order.
 
 Two selection strategies share one scan loop:
 * k <= SMALL_K: a per-thread max-heap of SMALL_K slots, one pass (rings added incrementally).
 * larger k (SOR uses k = 500): selection by counting, with no per-thread array of k slots.
-  Count passes fix the ring L; radix passes over the float bits of the squared distance
+  Count passes fix the ring L; radix passes over the float bits of the distance
   (32-bin histograms, 5 bits a pass, in registers) narrow the bin holding the k-th candidate
   until at most SMALL_K candidates remain in it, which are then sorted in registers. Exact ties
   of the k-th distance are split by a second radix selection over point indices. A final pass
@@ -42,19 +42,15 @@ def _pair_less(ka: ti.i32, ia: ti.i32, kb: ti.i32, ib: ti.i32) -> ti.i32:
 
 
 @ti.func
-def _safe_r2(u: ti.math.vec3, c: ti.math.ivec3, ring: ti.i32, cell_size: ti.f32) -> ti.f32:
-    """Squared radius within which every point lies inside the cube of ``ring`` rings.
+def _safe_radius(u: ti.math.vec3, c: ti.math.ivec3, ring: ti.i32, cell_size: ti.f32) -> ti.f32:
+    """Radius within which every point lies inside the cube of ``ring`` rings.
 
     ``u`` is the query in cell units; the margin covers float32 rounding of the cell assignment
     (relative to the coordinate magnitude)."""
     frac = u - ti.cast(c, ti.f32)
     b = ti.min(ti.min(frac, 1.0 - frac).min(), 1.0)
     margin = (ti.abs(u).max() + 2.0) * 1e-6
-    r = (ti.cast(ring, ti.f32) + b - margin) * cell_size
-    r2 = 0.0
-    if r > 0:
-        r2 = r * r * (1.0 - 1e-6)
-    return r2
+    return ti.max((ti.cast(ring, ti.f32) + b - margin) * cell_size, 0.0)
 
 
 @ti.kernel
@@ -97,7 +93,7 @@ def _knn_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndar
             count = 0
             for b in ti.static(range(_BINS)):
                 hist[b] = 0
-            s2 = _safe_r2(u, c, ring, cell_size)
+            sr = _safe_radius(u, c, ring, cell_size)
             span = 2 * ring + 1
             n_cells = span * span * span
             if brute:
@@ -123,8 +119,8 @@ def _knn_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndar
                         ok = ok and cj[0] == target[0] and cj[1] == target[1] and cj[2] == target[2]
                     if ok:
                         p = ti.math.vec3(sxyz[j, 0], sxyz[j, 1], sxyz[j, 2]) - q
-                        d2 = p.dot(p)
-                        key = ti.bit_cast(d2, ti.i32)
+                        dist = ti.sqrt(p.dot(p))
+                        key = ti.bit_cast(dist, ti.i32)
                         idx = order[j]
                         if mode == _HEAP:
                             if size < k:
@@ -160,7 +156,7 @@ def _knn_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndar
                                 heap_key[pos] = key
                                 heap_idx[pos] = idx
                         elif mode == _COUNT:
-                            if d2 < s2 or brute:
+                            if dist < sr or brute:
                                 count += 1
                         elif mode == _HIST or mode == _COLLECT:
                             v = key
@@ -181,14 +177,14 @@ def _knn_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndar
                             if _pair_less(key, idx, t_key, t_idx) or (key == t_key and idx == t_idx):
                                 if ti.static(emit_rows):
                                     out_idx[qi, emitted] = idx
-                                    out_dist[qi, emitted] = d2
+                                    out_dist[qi, emitted] = dist
                                 else:
-                                    dist_sum += ti.sqrt(d2)
+                                    dist_sum += dist
                                 emitted += 1
 
             # ---- what the pass found decides the next one
             if mode == _HEAP:
-                if brute or (size == k and ti.bit_cast(heap_key[0], ti.f32) < s2):
+                if brute or (size == k and ti.bit_cast(heap_key[0], ti.f32) < sr):
                     # heap sort in place: ascending (key, index)
                     end = size - 1
                     while end > 0:
@@ -218,12 +214,12 @@ def _knn_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndar
                                 break
                         end -= 1
                     for r in range(k):
-                        d2 = ti.bit_cast(heap_key[r], ti.f32)
+                        dist = ti.bit_cast(heap_key[r], ti.f32)
                         if ti.static(emit_rows):
                             out_idx[qi, r] = heap_idx[r]
-                            out_dist[qi, r] = ti.sqrt(d2)
+                            out_dist[qi, r] = dist
                         else:
-                            dist_sum += ti.sqrt(d2)
+                            dist_sum += dist
                     done = 1
                 else:
                     inner = ring
@@ -236,7 +232,7 @@ def _knn_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndar
                     mode = _HIST
                     hi = _INF_KEY
                     if brute == 0:
-                        hi = ti.bit_cast(s2, ti.i32)
+                        hi = ti.bit_cast(sr, ti.i32)
                     while (hi >> shift) >= _BINS:
                         shift += 1
                 elif (2 * ring + 3) * (2 * ring + 3) * (2 * ring + 3) > brute_cells:
@@ -290,7 +286,7 @@ def _knn_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndar
             else:
                 done = 1
                 if ti.static(emit_rows):
-                    # heap sort of the emitted row in place (global memory), then distances
+                    # heap sort of the emitted row in place (global memory)
                     m = emitted
                     start = m // 2 - 1
                     end = m - 1
@@ -326,8 +322,6 @@ def _knn_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndar
                                 pos = child
                             else:
                                 break
-                    for r in range(m):
-                        out_dist[qi, r] = ti.sqrt(out_dist[qi, r])
         if ti.static(not emit_rows):
             out_mean[qi] = dist_sum / ti.cast(k + self_slots, ti.f32)
 
@@ -413,7 +407,7 @@ def _radius_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.n
                  scell: ti.types.ndarray(dtype=ti.i32, ndim=2), bstart: ti.types.ndarray(dtype=ti.i32, ndim=1),
                  mask: ti.i32, rings: ti.i32, r2: ti.f32, count: ti.types.ndarray(dtype=ti.i32, ndim=1),
                  offsets: ti.types.ndarray(dtype=ti.i32, ndim=1), out_idx: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                 out_d2: ti.types.ndarray(dtype=ti.f32, ndim=1), fill: ti.template()):
+                 out_dist: ti.types.ndarray(dtype=ti.f32, ndim=1), fill: ti.template()):
     for s in range(sxyz.shape[0]):
         qi = order[s]
         q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
@@ -435,20 +429,20 @@ def _radius_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.n
                     if d2 <= r2:
                         if ti.static(fill):
                             out_idx[base + m] = order[j]
-                            out_d2[base + m] = d2
+                            out_dist[base + m] = ti.sqrt(d2)
                         m += 1
         if ti.static(fill):
             # insertion sort of the row by (distance, index): rows are short
             for a in range(base + 1, base + m):
-                tk = out_d2[a]
+                tk = out_dist[a]
                 tx = out_idx[a]
                 b = a
                 while b > base and _pair_less(ti.bit_cast(tk, ti.i32), tx,
-                                              ti.bit_cast(out_d2[b - 1], ti.i32), out_idx[b - 1]):
-                    out_d2[b] = out_d2[b - 1]
+                                              ti.bit_cast(out_dist[b - 1], ti.i32), out_idx[b - 1]):
+                    out_dist[b] = out_dist[b - 1]
                     out_idx[b] = out_idx[b - 1]
                     b -= 1
-                out_d2[b] = tk
+                out_dist[b] = tk
                 out_idx[b] = tx
         else:
             count[qi] = m
@@ -502,8 +496,8 @@ def radius_search(xyz, radius: float, *, max_neighbors: int = None, grid: Grid =
     offsets, total = _csr_offsets(count)
     idx = ndarray(ti.i32, (total,))
     if total:
-        d2 = ndarray(ti.f32, (total,))
-        _radius_scan(*args, count, offsets, idx, d2, True)
+        dist = ndarray(ti.f32, (total,))
+        _radius_scan(*args, count, offsets, idx, dist, True)
     if max_neighbors is not None and n:
         clipped = ndarray(ti.i32, (n + 1,))
         _clip_counts(offsets, int(max_neighbors), clipped)

@@ -56,6 +56,9 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--points", required=True, type=_count)
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("-o", "--output", required=True)
+    a = sub.add_parser("accuracy", help="accuracy report of both pipelines on real and synthetic data")
+    from roadx_ti import accuracy
+    accuracy.add_arguments(a)
     return p
 
 
@@ -102,7 +105,8 @@ def main(argv: list[str] | None = None) -> int:
     from roadx_ti.io import InputError
 
     try:
-        return {"run": cmd_run, "eval": cmd_eval, "info": cmd_info, "synth": cmd_synth}[args.command](args)
+        return {"run": cmd_run, "eval": cmd_eval, "info": cmd_info, "synth": cmd_synth,
+                "accuracy": cmd_accuracy}[args.command](args)
     except (ConfigError, UsageError) as exc:
         print(f"roadx_ti: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -141,6 +145,7 @@ def cmd_run(args) -> int:
         if not Path(p).is_file():
             raise config.ConfigError(f"config error: input.paths = {p!r}: no such file")
     out = Path(cfg.output.path)
+    _make_parent(out)
     io.check_output_path(out, cfg.input.paths)
     stage_specs = cfg.stage_list() or pipelines.default_stage_specs(cfg.pipeline)
 
@@ -208,6 +213,14 @@ def cmd_run(args) -> int:
     return EXIT_OK
 
 
+def _make_parent(out: Path) -> None:
+    """Create the output's folder, as users of PDAL and friends expect; failures are data errors."""
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DataError(f"{out}: cannot create the output folder: {exc.strerror}") from None
+
+
 def _progress_bar(total: int, quiet: bool):
     if quiet or not sys.stderr.isatty():
         return None
@@ -251,11 +264,19 @@ def cmd_info(args) -> int:
     return EXIT_OK
 
 
+# ---------------------------------------------------------------------------------- accuracy
+def cmd_accuracy(args) -> int:
+    from roadx_ti import accuracy
+
+    return accuracy.main(args)
+
+
 # ------------------------------------------------------------------------------------- synth
 def cmd_synth(args) -> int:
     from roadx_ti import io, synthetic
 
     out = Path(args.output)
+    _make_parent(out)
     io.check_output_path(out, [])
     try:
         cloud = synthetic.generate(args.kind, args.points, args.seed)

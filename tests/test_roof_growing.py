@@ -174,3 +174,59 @@ def test_colour_rule_keeps_green_roof_and_stops_in_foliage(ti_arch):
     tree_labels = got[560:][got[560:] >= 0]
     if len(tree_labels):
         assert np.bincount(tree_labels).max() < 10
+
+
+def house_and_tree_scene(seed=7):
+    """Non-ground points of a synthetic plot (ground at z = 0): a 10 x 8 m gable roof (pitch 39
+    degrees) at 5-8.2 m, a low 6 x 6 m flat slab at 1 m (a terrace: too low for a roof), a green
+    tree, and a small 2 x 2.5 m flat roof at 4 m (below the minimum area)."""
+    rng = np.random.default_rng(seed)
+    density = 12.0
+
+    def patch(x0, x1, y0, y1, z_of, colour):
+        m = int(density * (x1 - x0) * (y1 - y0))
+        x, y = rng.uniform(x0, x1, m), rng.uniform(y0, y1, m)
+        rgb = np.tile(colour, (m, 1)) + rng.integers(-5, 6, (m, 3))
+        return np.column_stack([x, y, z_of(x, y)]), rgb, m
+
+    roof_a = patch(0, 10, 0, 4, lambda x, y: 5 + 0.8 * y, [150, 80, 70])
+    roof_b = patch(0, 10, 4, 8, lambda x, y: 5 + 0.8 * (8 - y), [150, 80, 70])
+    slab = patch(20, 26, 0, 6, lambda x, y: np.full_like(x, 1.0), [120, 120, 120])
+    small = patch(20, 22, 12, 14.5, lambda x, y: np.full_like(x, 4.0), [130, 130, 130])
+    tree = rng.normal([5, 20, 6], [2, 2, 1.5], (900, 3))
+    tree_rgb = np.column_stack([rng.integers(20, 90, 900), rng.integers(80, 200, 900), rng.integers(10, 80, 900)])
+    parts = [roof_a, roof_b, slab, small, (tree, tree_rgb, 900)]
+    xyz = np.concatenate([p[0] for p in parts]) + rng.normal(0, 0.02, (sum(p[2] for p in parts), 3))
+    rgb = np.clip(np.concatenate([p[1] for p in parts]), 0, 255).astype(np.uint16)
+    part = np.repeat(np.arange(len(parts)), [p[2] for p in parts])
+    return xyz, rgb, part
+
+
+@pytest.mark.parametrize("with_colour", [True, False])
+def test_roof_stages_on_synthetic_plot(ti_arch, with_colour, caplog):
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.roof_filter import RoofFilter
+    from roadx_ti.stages.roof_growing import RoofGrowing
+    from roadx_ti.stages.seeds import RoofSeeds
+
+    xyz, rgb, part = house_and_tree_scene()
+    cloud = Cloud.from_world(xyz, origin=np.zeros(3), rgb=rgb if with_colour else None)
+    ctx = StageContext(point_data={"height_above_ground": cloud.xyz[:, 2].copy()})
+    infos = {}
+    for stage in (RoofSeeds(), RoofGrowing(), RoofFilter()):
+        result = stage.run(cloud, ctx)
+        ctx.point_data.update(result.point_data)
+        infos[stage.name] = result.info
+    labels_out, segment_id = result.labels, result.segment_id
+    roof = part < 2
+    assert (labels_out[roof] == 6).mean() > 0.95
+    assert (labels_out[~roof] == 1).mean() > 0.97
+    # one segment per roof plane, compact ids, -1 off the roofs
+    assert set(np.unique(segment_id)) == {-1, 0, 1}
+    assert ((segment_id >= 0) == (labels_out == 6)).all()
+    assert infos["roof_filter"]["dropped_by_height"] >= 1   # the slab
+    assert infos["roof_filter"]["dropped_by_area"] >= 1     # the small roof
+    assert set(infos["roof_seeds"]["removed_by"]) == {"planar", "compact", "gradient"}
+    assert infos["roof_growing"]["color_rule"] == with_colour
+    assert ("no colour" in caplog.text) == (not with_colour)

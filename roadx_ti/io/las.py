@@ -145,7 +145,7 @@ def _las_rgb(las) -> tuple[np.ndarray | None, int]:
 
 # ---------------------------------------------------------------------------------------- writing
 
-def _index(subset, n: int):
+def point_index(subset, n: int):
     """``subset`` (bool mask or indices) checked against n points; None keeps all."""
     if subset is None:
         return None
@@ -161,7 +161,7 @@ def _index(subset, n: int):
     return index
 
 
-def _per_point(name: str, values, n: int, index) -> np.ndarray:
+def per_point(name: str, values, n: int, index) -> np.ndarray:
     a = np.asarray(values)
     if a.ndim != 1 or len(a) != n:
         raise ValueError(f"{name} has shape {a.shape}, expected ({n},)")
@@ -223,7 +223,7 @@ def _las_from_record(path, src, n: int, classification, extra_dims, index) -> la
         raise ValueError(f"cloud has {n} points but its LAS record has {len(src.points)}")
     header = copy.deepcopy(src.header)
     array = src.points.array if index is None else src.points.array[index]
-    classes = None if classification is None else _classes(path, _per_point("classification", classification, n, index))
+    classes = None if classification is None else _classes(path, per_point("classification", classification, n, index))
     fmt_id = header.point_format.id
     if classes is not None and fmt_id in WIDE_CLASS_FORMAT and classes.size and int(classes.max()) > 31:
         wide = WIDE_CLASS_FORMAT[fmt_id]
@@ -233,7 +233,7 @@ def _las_from_record(path, src, n: int, classification, extra_dims, index) -> la
             array.copy(), header.point_format, header.scales, header.offsets)),
             point_format_id=wide, file_version="1.4")
         header, array = upgraded.header, upgraded.points.array
-    extra = {name: _extra_dim_values(path, name, _per_point(name, v, n, index))
+    extra = {name: _extra_dim_values(path, name, per_point(name, v, n, index))
              for name, v in (extra_dims or {}).items()}
     if extra:
         record = _set_extra_dims(path, header, array, extra)
@@ -254,9 +254,12 @@ def _las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> l
     columns = dict(cloud.attributes)
     columns.update(extra_dims or {})
     standard_cols, extra = {}, {}
+    taken = {"X", "Y", "Z", "x", "y", "z"} | ({"red", "green", "blue"} if has_rgb else set())
+    taken |= {"intensity"} if cloud.intensity is not None else set()
+    taken |= {"classification"} if classification is not None or cloud.classification is not None else set()
     for name, values in columns.items():
-        a = _per_point(name, values, n, index)
-        if name in ("X", "Y", "Z", "x", "y", "z", "red", "green", "blue", "intensity", "classification"):
+        a = per_point(name, values, n, index)
+        if name in taken:
             raise fail(path, f"attribute {name!r} would hide the cloud's own {name}; rename it")
         if name in standard:
             standard_cols[name] = a
@@ -274,10 +277,10 @@ def _las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> l
         rgb = rgb.astype(np.uint16) * np.uint16(257) if cloud.color_depth == 8 else rgb.astype(np.uint16)
         record["red"], record["green"], record["blue"] = rgb[:, 0], rgb[:, 1], rgb[:, 2]
     if cloud.intensity is not None:
-        record["intensity"] = _per_point("intensity", cloud.intensity, n, index).astype(np.uint16)
+        record["intensity"] = per_point("intensity", cloud.intensity, n, index).astype(np.uint16)
     classes = classification if classification is not None else cloud.classification
     if classes is not None:
-        record["classification"] = _classes(path, _per_point("classification", classes, n, index))
+        record["classification"] = _classes(path, per_point("classification", classes, n, index))
     for name, a in standard_cols.items():
         target = record[name]
         cast = a.astype(np.asarray(target).dtype)
@@ -289,7 +292,7 @@ def _las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> l
 
 def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=None) -> None:
     """Write ``cloud`` to LAS, or LAZ when ``path`` ends with .laz, atomically."""
-    index = _index(subset, cloud.n)
+    index = point_index(subset, cloud.n)
     if cloud.las is not None:
         las = _las_from_record(path, cloud.las, cloud.n, classification, extra_dims, index)
     else:

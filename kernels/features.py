@@ -1,0 +1,129 @@
+"""Covariance features of each point's neighbourhood: normal, eigenvalues, curvature, extents.
+
+The neighbourhood of point p is p itself plus its k neighbours (as Open3D's estimate_normals,
+whose KNN result contains p). The covariance is taken about the neighbourhood centroid, with
+coordinates relative to p, so float32 keeps its precision far from the origin. Eigenvalues come
+from a cyclic Jacobi solver on the scaled 3x3 matrix: robust for flat and linear (degenerate)
+neighbourhoods, where closed-form cubic solutions lose the small eigenvalue.
+"""
+
+import numpy as np
+import taichi as ti
+
+from .common import as_ndarray, is_ndarray, length, ndarray
+
+_JACOBI_SWEEPS = 8
+
+
+@ti.func
+def sym_eigen3(a: ti.math.mat3):
+    """Eigen-decomposition of a symmetric 3x3 matrix: (eigenvalues ascending, eigenvectors as
+    columns in the same order)."""
+    scale = ti.max(ti.abs(a).max(), 1e-30)
+    m = a / scale
+    v = ti.math.mat3([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    for _ in range(_JACOBI_SWEEPS):
+        for pair in ti.static(range(3)):
+            p = ti.static((0, 0, 1)[pair])
+            q = ti.static((1, 2, 2)[pair])
+            apq = m[p, q]
+            if ti.abs(apq) > 1e-30:
+                theta = (m[q, q] - m[p, p]) / (2.0 * apq)
+                t = ti.math.sign(theta) / (ti.abs(theta) + ti.sqrt(theta * theta + 1.0))
+                if theta == 0:
+                    t = 1.0
+                c = 1.0 / ti.sqrt(t * t + 1.0)
+                s = t * c
+                rot = ti.math.mat3([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+                rot[p, p] = c
+                rot[q, q] = c
+                rot[p, q] = s
+                rot[q, p] = -s
+                m = rot.transpose() @ m @ rot
+                m[p, q] = 0.0
+                m[q, p] = 0.0
+                v = v @ rot
+    w = ti.math.vec3(m[0, 0], m[1, 1], m[2, 2]) * scale
+    # sort ascending (three compare-swaps), carrying the eigenvector columns
+    for pair in ti.static(range(3)):
+        i = ti.static((0, 1, 0)[pair])
+        j = ti.static((1, 2, 1)[pair])
+        if w[j] < w[i]:
+            tmp = w[i]
+            w[i] = w[j]
+            w[j] = tmp
+            for r in ti.static(range(3)):
+                tv = v[r, i]
+                v[r, i] = v[r, j]
+                v[r, j] = tv
+    return w, v
+
+
+@ti.kernel
+def _covariance_features(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                         normal: ti.types.ndarray(dtype=ti.f32, ndim=2), eigval: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                         curvature: ti.types.ndarray(dtype=ti.f32, ndim=1),
+                         max_distance: ti.types.ndarray(dtype=ti.f32, ndim=1),
+                         extent: ti.types.ndarray(dtype=ti.f32, ndim=2)):
+    k = nbr.shape[1]
+    for i in range(xyz.shape[0]):
+        p = ti.math.vec3(xyz[i, 0], xyz[i, 1], xyz[i, 2])
+        total = ti.math.vec3(0.0)          # p's own offset is 0
+        lo = ti.math.vec3(0.0)
+        hi = ti.math.vec3(0.0)
+        far2 = 0.0
+        for r in range(k):
+            j = nbr[i, r]
+            d = ti.math.vec3(xyz[j, 0], xyz[j, 1], xyz[j, 2]) - p
+            total += d
+            lo = ti.min(lo, d)
+            hi = ti.max(hi, d)
+            far2 = ti.max(far2, d.dot(d))
+        centre = total / ti.cast(k + 1, ti.f32)
+        cov = ti.math.mat3(0.0)
+        dp = -centre
+        cov += dp.outer_product(dp)
+        for r in range(k):
+            j = nbr[i, r]
+            d = ti.math.vec3(xyz[j, 0], xyz[j, 1], xyz[j, 2]) - p - centre
+            cov += d.outer_product(d)
+        cov /= ti.cast(k + 1, ti.f32)
+        w, v = sym_eigen3(cov)
+        w = ti.max(w, 0.0)                  # rounding can leave a tiny negative l0
+        nrm = ti.math.vec3(v[0, 0], v[1, 0], v[2, 0]).normalized()
+        if nrm[2] < 0:
+            nrm = -nrm
+        for a in ti.static(range(3)):
+            normal[i, a] = nrm[a]
+            eigval[i, a] = w[a]
+            extent[i, a] = hi[a] - lo[a]
+        wsum = w.sum()
+        curvature[i] = 0.0
+        if wsum > 0:
+            curvature[i] = w[0] / wsum
+        max_distance[i] = ti.sqrt(far2)
+
+
+def covariance_features(xyz, knn_indices) -> dict:
+    """Per-point covariance features of p plus its k neighbours (``knn_indices`` (n, k) int32,
+    e.g. from ``neighbors.knn``).
+
+    Returns a dict of numpy arrays (Taichi ndarrays when ``xyz`` is one):
+    'normal' (n, 3) unit eigenvector of the smallest eigenvalue, oriented so nz >= 0;
+    'eigenvalues' (n, 3) ascending; 'curvature' (n,) l0 / (l0 + l1 + l2), 0 when the sum is 0;
+    'max_distance' (n,) distance to the farthest of the k neighbours;
+    'extent' (n, 3) per-axis max - min of the neighbourhood coordinates."""
+    pts = as_ndarray(xyz, np.float32)
+    nbr = as_ndarray(knn_indices, np.int32)
+    n = length(pts)
+    if len(nbr.shape) != 2 or int(nbr.shape[0]) != n:
+        raise ValueError(f"knn_indices must have shape (n, k) with n={n}, got {tuple(nbr.shape)}")
+    out = {"normal": ndarray(ti.f32, (n, 3)), "eigenvalues": ndarray(ti.f32, (n, 3)),
+           "curvature": ndarray(ti.f32, (n,)), "max_distance": ndarray(ti.f32, (n,)),
+           "extent": ndarray(ti.f32, (n, 3))}
+    if n:
+        _covariance_features(pts, nbr, out["normal"], out["eigenvalues"], out["curvature"],
+                             out["max_distance"], out["extent"])
+    if not is_ndarray(xyz):
+        out = {name: a.to_numpy() for name, a in out.items()}
+    return out

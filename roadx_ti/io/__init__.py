@@ -1,0 +1,152 @@
+"""Point-cloud files in and out.
+
+    cloud = roadx_ti.io.read("tile.laz")                      # LAS/LAZ, PLY, PCD, NPZ, XYZ/TXT/CSV
+    cloud = roadx_ti.io.read("big.laz", bounds=(x0, y0, x1, y1))   # chunked window, [min, max)
+    roadx_ti.io.write("out.laz", cloud, classification=labels,
+                      extra_dims={"roadx_label": lab_u8, "segment_id": seg_i32})
+    roadx_ti.io.info("tile.laz")   -> dict (count, bounds, format, dimensions, colour, classes, CRS)
+    roadx_ti.io.read_headers(paths) -> [(path, (xmin, ymin, xmax, ymax), point_count), ...]
+
+The format follows the extension. Problems with the user's files raise ``InputError`` (a
+ValueError) with one line 'PATH: problem'. Outputs are written atomically and never over an input
+(see ``check_output_path``). Details per format: ``las.py`` (LAS/LAZ) and ``other.py``.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..cloud import Cloud
+from . import las as _las
+from . import other as _other
+from .atomic import InputError, atomic_output, check_output_path, fail
+
+__all__ = ["InputError", "read", "write", "info", "read_headers", "check_output_path",
+           "atomic_output", "EXTENSIONS"]
+
+EXTENSIONS = {".las": "las", ".laz": "las", ".ply": "ply", ".pcd": "pcd", ".npz": "npz",
+              ".xyz": "text", ".txt": "text", ".csv": "text"}
+
+
+def _kind(path: Path) -> str:
+    kind = EXTENSIONS.get(path.suffix.lower())
+    if kind is None:
+        raise fail(path, f"not a point-cloud file name: unknown extension {path.suffix or '(none)'!r} "
+                         f"(expected {' '.join(EXTENSIONS)})")
+    return kind
+
+
+def _check_input(path: Path) -> None:
+    if not path.exists():
+        raise fail(path, "no such file")
+    if path.is_dir():
+        raise fail(path, "is a folder, expected a point-cloud file")
+    if not os.access(path, os.R_OK):
+        raise fail(path, "not readable (permission denied)")
+    if path.stat().st_size == 0:
+        raise fail(path, "empty file (0 bytes)")
+
+
+def read(path, *, bounds=None, origin=None) -> Cloud:
+    """Read a point cloud. ``bounds`` = (xmin, ymin, xmax, ymax) keeps the points with
+    xmin <= x < xmax and ymin <= y < ymax (LAS/LAZ are read in chunks, so only those points are held).
+    ``origin`` (float64 xyz) overrides the local origin, e.g. to share one origin across tiles.
+    A file with zero points gives an empty Cloud."""
+    path = Path(path)
+    kind = _kind(path)
+    _check_input(path)
+    if bounds is not None:
+        bounds = tuple(float(b) for b in bounds)
+        if len(bounds) != 4 or not (bounds[0] < bounds[2] and bounds[1] < bounds[3]):
+            raise ValueError(f"bounds must be (xmin, ymin, xmax, ymax) with min < max, got {bounds}")
+    if kind == "las":
+        cloud = _las.read_las(path, bounds, origin)
+    else:
+        try:
+            cloud = _other.READERS[kind](path, origin)
+        except (UnicodeDecodeError, MemoryError) as exc:
+            raise fail(path, f"cannot be read as {kind} ({type(exc).__name__})") from None
+        if bounds is not None:
+            world = cloud.xyz.astype(np.float64) + cloud.origin
+            inside = ((world[:, 0] >= bounds[0]) & (world[:, 0] < bounds[2])
+                      & (world[:, 1] >= bounds[1]) & (world[:, 1] < bounds[3]))
+            cloud = cloud.subset(inside)
+    if not np.all(np.isfinite(cloud.origin)):
+        raise fail(path, f"local origin {cloud.origin.tolist()} is not finite")
+    bad = int(np.count_nonzero(~np.isfinite(cloud.xyz).all(axis=1))) if cloud.n else 0
+    if bad:
+        raise fail(path, f"{bad} of {cloud.n} points have NaN or infinite coordinates (relative to the "
+                         f"origin {cloud.origin.tolist()})")
+    if cloud.n > _las.MAX_POINTS:
+        raise _las._too_many(path, cloud.n)
+    return cloud
+
+
+def write(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=None) -> None:
+    """Write ``cloud`` atomically in the format of ``path``'s extension (LAS/LAZ, PLY, PCD, NPZ, text).
+
+    classification: per-point uint8 classes replacing the cloud's (ASPRS: 1 other, 2 ground,
+    6 building, 11 road). extra_dims: {name: per-point array}, LAS extra dimensions (replacing
+    same-named ones) or extra columns/properties. subset: bool mask or indices of the points to write
+    (classification and extra_dims are given for all points of the cloud).
+    A cloud read from LAS is written from its point records: every attribute is kept bit-exact."""
+    path = Path(path)
+    kind = _kind(path)
+    inputs = [cloud.source] if cloud.source and Path(cloud.source).exists() else []
+    check_output_path(path, inputs)
+    if kind == "las":
+        _las.write_las(path, cloud, classification=classification, extra_dims=extra_dims, subset=subset)
+    else:
+        _other.WRITERS[kind](path, cloud, classification, extra_dims, subset)
+
+
+def info(path) -> dict:
+    """Summary of a file: point_count, bounds {min, max}, format, point_format and version (LAS),
+    dimensions, extra_dimensions, color ('16-bit', '8-bit', 'all-zero', 'none'), color_depth,
+    class_histogram {class: count}, crs (LAS, when it has one). LAS is scanned in chunks."""
+    path = Path(path)
+    kind = _kind(path)
+    _check_input(path)
+    if kind == "las":
+        return _las.info_las(path)
+    cloud = read(path)
+    world = cloud.xyz.astype(np.float64) + cloud.origin
+    dims = ["x", "y", "z"] + (["red", "green", "blue"] if cloud.rgb is not None else [])
+    dims += [name for name, a in (("intensity", cloud.intensity), ("classification", cloud.classification))
+             if a is not None]
+    hist = {}
+    if cloud.classification is not None:
+        values, counts = np.unique(cloud.classification, return_counts=True)
+        hist = {int(v): int(c) for v, c in zip(values, counts)}
+    return {
+        "path": str(path), "format": kind if kind != "text" else path.suffix.lower().lstrip("."),
+        "point_count": cloud.n,
+        "bounds": {"min": world.min(axis=0).tolist(), "max": world.max(axis=0).tolist()} if cloud.n else None,
+        "point_format": None, "version": None,
+        "dimensions": dims + list(cloud.attributes), "extra_dimensions": list(cloud.attributes),
+        "color": f"{cloud.color_depth}-bit" if cloud.rgb is not None else "none",
+        "color_depth": cloud.color_depth if cloud.rgb is not None else None,
+        "class_histogram": hist, "crs": None,
+    }
+
+
+def read_headers(paths) -> list[tuple[str, tuple[float, float, float, float], int]]:
+    """[(path, (xmin, ymin, xmax, ymax), point_count)] per file, from the LAS header alone (other
+    formats have no header bounds and are read). Bounds are the header's, max inclusive."""
+    out = []
+    for p in paths:
+        path = Path(p)
+        kind = _kind(path)
+        _check_input(path)
+        if kind == "las":
+            count, bounds = _las.read_header_las(path)
+        else:
+            cloud = read(path)
+            world = cloud.xyz.astype(np.float64) + cloud.origin
+            count = cloud.n
+            bounds = ((float(world[:, 0].min()), float(world[:, 1].min()), float(world[:, 0].max()),
+                       float(world[:, 1].max())) if count else (0.0, 0.0, 0.0, 0.0))
+        out.append((str(p), bounds, count))
+    return out

@@ -1,0 +1,457 @@
+"""PLY, PCD, NPZ and XYZ text: readers return a Cloud, writers take the Cloud and the same
+classification / extra_dims / subset as the LAS writer (written as columns or properties).
+
+- PLY: numpy reader/writer for ascii and binary vertex data with every PLY scalar type (Open3D's PLY
+  reader skips char/short/uint properties, so it would drop attributes silently). x y z are written
+  as double world coordinates; colour as uchar (8-bit) or ushort (16-bit); float colour 0..1 is
+  read as 8-bit 0..255.
+- PCD: Open3D, imported inside the functions so LAS users do not pay its import; PCD colour is 8-bit.
+- NPZ: ``xyz`` (float32, local) + ``origin`` (float64) + rgb, color_depth, intensity, classification and
+  one array per attribute, so a Cloud round-trips bit for bit; an ``xyz`` without ``origin`` is taken
+  as world coordinates.
+- Text (.xyz .txt .csv): whitespace or comma separated X Y Z [R G B [I]] (X Y Z I with 4 columns),
+  '#' or '//' comments; a header naming the columns (a last comment line or a first non-numeric
+  line, as our writer, CloudCompare and PDAL write them) maps named columns.
+"""
+from __future__ import annotations
+
+import contextlib
+import logging
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..cloud import Cloud, detect_color_depth
+from .atomic import InputError, atomic_output, fail
+from .las import per_point, point_index
+
+log = logging.getLogger(__name__)
+
+INTENSITY_NAMES = ("intensity", "scalar_intensity", "i")
+CLASS_NAMES = ("classification", "scalar_classification", "class")
+RGB_NAMES = (("red", "green", "blue"), ("r", "g", "b"), ("diffuse_red", "diffuse_green", "diffuse_blue"))
+
+
+# ------------------------------------------------------------------------------ shared helpers
+
+def world_cloud(path, world: np.ndarray, origin, columns: dict) -> Cloud:
+    """A Cloud from float64 world xyz and named per-point columns: colour, intensity and
+    classification are recognised by name (case-insensitive), the rest become attributes."""
+    world = np.asarray(world, dtype=np.float64)
+    bad = int(np.count_nonzero(~np.isfinite(world).all(axis=1))) if len(world) else 0
+    if bad:
+        raise fail(path, f"{bad} of {len(world)} points have NaN or infinite coordinates")
+    lower = {k.lower(): k for k in columns}
+    taken = set()
+    rgb = depth = None
+    for names in RGB_NAMES:
+        if all(n in lower for n in names):
+            keys = [lower[n] for n in names]
+            rgb, depth = _colour(np.column_stack([columns[k] for k in keys]))
+            taken.update(keys)
+            break
+    intensity = _take_integral(columns, lower, INTENSITY_NAMES, np.uint16, taken)
+    classification = _take_integral(columns, lower, CLASS_NAMES, np.uint8, taken)
+    attributes = {k: np.asarray(v) for k, v in columns.items() if k not in taken}
+    kw = dict(rgb=rgb, color_depth=depth or 0, intensity=intensity, classification=classification,
+              attributes=attributes, source=str(path))
+    return Cloud.from_world(world, origin=origin, **kw)
+
+
+def _colour(rgb: np.ndarray) -> tuple[np.ndarray, int]:
+    if rgb.dtype.kind == "f":
+        scale = 255.0 if rgb.size and float(np.nanmax(rgb)) <= 1.0 else 1.0
+        rgb = np.clip(np.round(np.nan_to_num(rgb) * scale), 0, 65535)
+    rgb = rgb.astype(np.uint16)
+    return rgb, detect_color_depth(rgb)
+
+
+def _take_integral(columns, lower, names, dtype, taken):
+    """The first column named as one of ``names`` when it holds integers that fit ``dtype``."""
+    for name in names:
+        key = lower.get(name)
+        if key is None:
+            continue
+        a = np.asarray(columns[key])
+        info = np.iinfo(dtype)
+        if a.dtype.kind in "iub" or (a.dtype.kind == "f" and np.all(np.isfinite(a)) and np.all(a == np.round(a))):
+            if a.size == 0 or (a.min() >= info.min and a.max() <= info.max):
+                taken.add(key)
+                return a.astype(dtype)
+        return None  # present but not integral: left as an attribute
+    return None
+
+
+def _columns(cloud: Cloud, classification, extra_dims, subset):
+    """World xyz and ordered per-point columns to write (after ``subset``)."""
+    n = cloud.n
+    index = point_index(subset, n)
+    pick = (lambda a: a) if index is None else (lambda a: a[index])
+    world = pick(cloud.world_xyz())
+    cols: dict[str, np.ndarray] = {}
+    if cloud.rgb is not None:
+        rgb = pick(cloud.rgb)
+        for k, name in enumerate(("red", "green", "blue")):
+            cols[name] = rgb[:, k].astype(np.uint8 if cloud.color_depth == 8 else np.uint16)
+    if cloud.intensity is not None:
+        cols["intensity"] = pick(np.asarray(cloud.intensity, dtype=np.uint16))
+    classes = classification if classification is not None else cloud.classification
+    if classes is not None:
+        classes = per_point("classification", classes, n, index)
+        if classes.size and (classes.min() < 0 or classes.max() > 255):
+            raise ValueError("classification values must be 0-255")
+        cols["classification"] = classes.astype(np.uint8)
+    extras = dict(cloud.attributes)
+    if cloud.las is not None:
+        for name in cloud.las.point_format.extra_dimension_names:
+            a = np.asarray(cloud.las[name])
+            if a.ndim == 2:
+                extras.update({f"{name}_{k}": a[:, k] for k in range(a.shape[1])})
+            else:
+                extras[name] = a
+    extras.update(extra_dims or {})
+    for name, values in extras.items():
+        if name.lower() in {"x", "y", "z"} | {c.lower() for c in cols}:
+            raise ValueError(f"extra column {name!r} would hide the cloud's own {name}; rename it")
+        a = per_point(name, values, n, index)
+        cols[name] = a.astype(np.uint8) if a.dtype == bool else a
+    return world, cols
+
+
+def _coord_decimals(cloud: Cloud) -> int:
+    """Decimals that keep the LAS scale exact, else micrometres."""
+    if cloud.las is not None:
+        return int(max(0, min(9, np.ceil(-np.log10(float(np.min(cloud.las.header.scales))) - 1e-9))))
+    return 6
+
+
+# ------------------------------------------------------------------------------------------ PLY
+
+PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+             "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+             "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
+PLY_NAMES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort", "i4": "int", "u4": "uint",
+             "f4": "float", "f8": "double"}
+
+
+def _ply_header(path, f):
+    """(format, [(element, count, [(prop, type) or (prop, 'list')])], header bytes, origin or None)."""
+    if f.readline().strip() != b"ply":
+        raise fail(path, "not a PLY file (no 'ply' magic line)")
+    fmt, elements, origin = None, [], None
+    while True:
+        line = f.readline()
+        if not line:
+            raise fail(path, "truncated PLY header (no end_header)")
+        words = line.decode("ascii", "replace").split()
+        if words[:2] == ["comment", "origin"] and len(words) == 5:   # written by write_ply
+            with contextlib.suppress(ValueError):
+                origin = np.array([float(w) for w in words[2:]])
+        if not words or words[0] in ("comment", "obj_info"):
+            continue
+        if words[0] == "end_header":
+            break
+        try:
+            if words[0] == "format":
+                fmt = words[1]
+            elif words[0] == "element":
+                elements.append((words[1], int(words[2]), []))
+            elif words[0] == "property" and words[1] == "list":
+                elements[-1][2].append((words[-1], "list"))
+            elif words[0] == "property":
+                elements[-1][2].append((words[2], PLY_TYPES[words[1]]))
+        except (IndexError, KeyError, ValueError):
+            raise fail(path, f"corrupt PLY header line: {line.decode('ascii', 'replace').strip()!r}") from None
+    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+        raise fail(path, f"unsupported PLY format {fmt!r}")
+    return fmt, elements, f.tell(), origin
+
+
+def read_ply(path, origin=None) -> Cloud:
+    with open(path, "rb") as f:
+        fmt, elements, start, stored_origin = _ply_header(path, f)
+    if origin is None and stored_origin is not None and np.all(np.isfinite(stored_origin)):
+        origin = stored_origin   # the writer's local origin: local coordinates come back bit for bit
+    names = [e[0] for e in elements]
+    if "vertex" not in names:
+        raise fail(path, "PLY file has no vertex element")
+    before = elements[:names.index("vertex")]
+    _, count, props = elements[names.index("vertex")]
+    if any(t == "list" for _, t in props) or any(t == "list" for e in before for _, t in e[2]):
+        raise fail(path, "PLY vertex data with list properties is not supported")
+    if not {"x", "y", "z"} <= {p for p, _ in props}:
+        raise fail(path, "PLY vertices have no x y z properties")
+    if fmt == "ascii":
+        skip = sum(e[1] for e in before)
+        try:
+            table = np.loadtxt(path, dtype=np.float64, ndmin=2, max_rows=count,
+                               **_ascii_after(path, start, skip))
+        except ValueError as exc:
+            raise fail(path, f"corrupt ASCII PLY data ({' '.join(str(exc).split())})") from None
+        if len(table) != count or (count and table.shape[1] != len(props)):
+            raise fail(path, f"truncated or corrupt PLY file: {count} vertices declared, {len(table)} read")
+        data = {p: table[:, k].astype(t) for k, (p, t) in enumerate(props)}
+    else:
+        order = "<" if fmt == "binary_little_endian" else ">"
+        skip = sum(e[1] * sum(np.dtype(t).itemsize for _, t in e[2]) for e in before)
+        dtype = np.dtype([(p, order + t) for p, t in props])
+        raw = np.fromfile(path, dtype=np.uint8, offset=start + skip, count=count * dtype.itemsize)
+        if len(raw) != count * dtype.itemsize:
+            raise fail(path, f"truncated PLY file: {count} vertices declared, "
+                             f"{len(raw) // max(dtype.itemsize, 1)} present")
+        table = raw.view(dtype)
+        data = {p: table[p].astype(np.dtype(t).newbyteorder("=")) for p, t in props}
+    world = np.column_stack([data.pop("x"), data.pop("y"), data.pop("z")]).astype(np.float64)
+    return world_cloud(path, world, origin, data)
+
+
+def _ascii_after(path, start: int, skip_lines: int) -> dict:
+    """loadtxt arguments that start reading after the header and ``skip_lines`` data lines."""
+    with open(path, "rb") as f:
+        header_lines = f.read(start).count(b"\n")
+    return {"skiprows": header_lines + skip_lines, "comments": None}
+
+
+def write_ply(path, cloud: Cloud, classification=None, extra_dims=None, subset=None) -> None:
+    world, cols = _columns(cloud, classification, extra_dims, subset)
+    fields = [("x", "<f8"), ("y", "<f8"), ("z", "<f8")]
+    values = {"x": world[:, 0], "y": world[:, 1], "z": world[:, 2]}
+    for name, a in cols.items():
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_\-.]*", name):
+            raise fail(path, f"column name {name!r} cannot be a PLY property name")
+        a = _ply_storable(path, name, a)
+        fields.append((name, a.dtype.newbyteorder("<").str))
+        values[name] = a
+    table = np.empty(len(world), dtype=np.dtype(fields))
+    for name, a in values.items():
+        table[name] = a
+    header = ["ply", "format binary_little_endian 1.0", "comment written by roadx_ti",
+              f"comment origin {cloud.origin[0]!r} {cloud.origin[1]!r} {cloud.origin[2]!r}",
+              f"element vertex {len(table)}"]
+    header += [f"property {PLY_NAMES[np.dtype(t).str[1:]]} {n}" for n, t in fields] + ["end_header", ""]
+    with atomic_output(path) as tmp:
+        with open(tmp, "wb") as f:
+            f.write("\n".join(header).encode("ascii"))
+            table.tofile(f)
+
+
+def _ply_storable(path, name: str, a: np.ndarray) -> np.ndarray:
+    """PLY has no 64-bit integers: store them as int32 or double when that is exact."""
+    a = np.asarray(a)
+    if a.dtype.str[1:] in PLY_NAMES:
+        return a
+    if a.dtype.kind in "iu":
+        if a.size == 0 or (a.min() >= -2**31 and a.max() < 2**31):
+            return a.astype(np.int32)
+        if np.abs(a).max() <= 2**53:
+            return a.astype(np.float64)
+    raise fail(path, f"column {name!r} of type {a.dtype} has no exact PLY type")
+
+
+# ------------------------------------------------------------------------------------------ PCD
+
+def _pcd_count(path) -> int:
+    count = None
+    with open(path, "rb") as f:
+        for _ in range(64):
+            words = f.readline().decode("ascii", "replace").split()
+            if not words or words[0].startswith("#"):
+                continue
+            if words[0] == "POINTS":
+                count = int(words[1])
+            if words[0] == "DATA":
+                break
+    if count is None:
+        raise fail(path, "not a PCD file (no POINTS line in the header)")
+    return count
+
+
+@contextlib.contextmanager
+def _quiet_open3d():
+    import open3d as o3d
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        yield o3d
+
+
+def read_pcd(path, origin=None) -> Cloud:
+    try:
+        count = _pcd_count(path)
+    except InputError:
+        raise
+    except (ValueError, IndexError):
+        raise fail(path, "corrupt PCD header") from None
+    with _quiet_open3d() as o3d:
+        try:
+            pc = o3d.t.io.read_point_cloud(str(path))
+        except RuntimeError as exc:
+            raise fail(path, f"corrupt PCD file ({' '.join(str(exc).split())[:200]})") from None
+    arrays = {k: pc.point[k].numpy() for k in pc.point}
+    world = arrays.pop("positions", np.zeros((0, 3)))
+    if len(world) != count:
+        raise fail(path, f"truncated or corrupt PCD file: {count} points declared, {len(world)} read")
+    columns = {}
+    if "colors" in arrays:
+        c = arrays.pop("colors")
+        columns.update(red=c[:, 0], green=c[:, 1], blue=c[:, 2])
+    if "normals" in arrays:
+        nrm = arrays.pop("normals")
+        columns.update(normal_x=nrm[:, 0], normal_y=nrm[:, 1], normal_z=nrm[:, 2])
+    for name, a in arrays.items():
+        if a.ndim == 2 and a.shape[1] == 1:
+            columns[name] = a[:, 0]
+        else:
+            columns.update({f"{name}_{k}": a[:, k] for k in range(a.shape[1])})
+    return world_cloud(path, world, origin, columns)
+
+
+def write_pcd(path, cloud: Cloud, classification=None, extra_dims=None, subset=None) -> None:
+    world, cols = _columns(cloud, classification, extra_dims, subset)
+    with _quiet_open3d() as o3d:
+        pc = o3d.t.geometry.PointCloud()
+        pc.point.positions = o3d.core.Tensor(np.ascontiguousarray(world))
+        if "red" in cols:
+            rgb = np.column_stack([cols.pop("red"), cols.pop("green"), cols.pop("blue")])
+            if rgb.dtype != np.uint8:   # PCD packs colour in 3 bytes
+                log.warning("%s: PCD colour is 8-bit; 16-bit colour written divided by 257", path)
+                rgb = np.round(rgb / 257.0).astype(np.uint8)
+            pc.point.colors = o3d.core.Tensor(np.ascontiguousarray(rgb))
+        for name, a in cols.items():
+            pc.point[name] = o3d.core.Tensor(np.ascontiguousarray(a.reshape(-1, 1)))
+        with atomic_output(path) as tmp:
+            if not o3d.t.io.write_point_cloud(str(tmp), pc):
+                raise OSError(f"{path}: Open3D could not write the PCD file")
+
+
+# ------------------------------------------------------------------------------------------ NPZ
+
+NPZ_KEYS = ("xyz", "origin", "rgb", "color_depth", "intensity", "classification")
+
+
+def read_npz(path, origin=None) -> Cloud:
+    import zipfile
+    if not zipfile.is_zipfile(path):
+        raise fail(path, "not an NPZ file (expected a numpy .npz archive)")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+        raise fail(path, f"not a readable NPZ file ({' '.join(str(exc).split())})") from None
+    xyz = arrays.pop("xyz", None)
+    if xyz is None or xyz.ndim != 2 or xyz.shape[1] != 3:
+        raise fail(path, "NPZ file has no 'xyz' array of shape (n, 3)")
+    n = len(xyz)
+    stored_origin = arrays.pop("origin", None)
+    world = xyz.astype(np.float64) + (0.0 if stored_origin is None else np.asarray(stored_origin, np.float64))
+    for key in ("rgb", "intensity", "classification"):
+        if key in arrays and len(arrays[key]) != n:
+            raise fail(path, f"NPZ array {key!r} has {len(arrays[key])} rows for {n} points")
+    rgb, depth = arrays.pop("rgb", None), int(arrays.pop("color_depth", 0))
+    intensity, classes = arrays.pop("intensity", None), arrays.pop("classification", None)
+    attributes = {k: v for k, v in arrays.items() if v.ndim == 1 and len(v) == n}
+    bad = int(np.count_nonzero(~np.isfinite(world).all(axis=1))) if n else 0
+    if bad:
+        raise fail(path, f"{bad} of {n} points have NaN or infinite coordinates")
+    if stored_origin is not None and origin is None:  # exact round trip of a Cloud
+        local = xyz.astype(np.float32)
+        o = np.asarray(stored_origin, np.float64)
+    else:
+        o = np.floor(world.min(axis=0)) if origin is None and n else (np.zeros(3) if origin is None else origin)
+        local = (world - np.asarray(o, np.float64)).astype(np.float32)
+    return Cloud(xyz=local, origin=o, rgb=None if rgb is None else rgb.astype(np.uint16),
+                 color_depth=depth if rgb is not None else 0,
+                 intensity=None if intensity is None else intensity.astype(np.uint16),
+                 classification=None if classes is None else classes.astype(np.uint8),
+                 attributes=attributes, source=str(path))
+
+
+def write_npz(path, cloud: Cloud, classification=None, extra_dims=None, subset=None) -> None:
+    index = point_index(subset, cloud.n)
+    pick = (lambda a: a) if index is None else (lambda a: a[index])
+    _, cols = _columns(cloud, classification, extra_dims, subset)
+    arrays = {"xyz": pick(cloud.xyz), "origin": cloud.origin}
+    if cloud.rgb is not None:
+        arrays["rgb"] = pick(cloud.rgb)
+        arrays["color_depth"] = np.int32(cloud.color_depth)
+        for name in ("red", "green", "blue"):
+            cols.pop(name)
+    arrays.update(cols)
+    with atomic_output(path) as tmp:
+        with open(tmp, "wb") as f:
+            np.savez(f, **arrays)
+
+
+# ----------------------------------------------------------------------------------------- text
+
+def _text_layout(path):
+    """(delimiter, column names or None, rows to skip) from the first lines of a text file."""
+    names, skip, first = None, 0, None
+    with open(path, "r", encoding="utf-8", errors="replace") as f:
+        for line in f:
+            stripped = line.strip()
+            if not stripped:
+                skip += 1
+                continue
+            if stripped.startswith(("#", "//")):
+                words = re.split(r"[\s,;]+", stripped.lstrip("#/").strip())
+                if words and words[0].lower() in ("x", "//x"):
+                    names = words
+                skip += 1
+                continue
+            first = stripped
+            break
+    if first is None:
+        return None, names, skip
+    delimiter = "," if "," in first else None
+    tokens = [t.strip().strip('"').strip("'") for t in (first.split(",") if delimiter else first.split())]
+    try:
+        [float(t) for t in tokens]
+    except ValueError:   # a header line without comment marker (PDAL writes "X","Y","Z",...)
+        names, skip = tokens, skip + 1
+    return delimiter, names, skip
+
+
+def read_text(path, origin=None) -> Cloud:
+    delimiter, names, skip = _text_layout(path)
+    try:
+        table = np.loadtxt(path, dtype=np.float64, delimiter=delimiter, skiprows=skip,
+                           comments=("#", "//"), ndmin=2)
+    except ValueError as exc:
+        raise fail(path, f"not a point table ({' '.join(str(exc).split())})") from None
+    if table.size == 0:
+        table = np.zeros((0, len(names) if names else 3))
+    width = table.shape[1]
+    if names is not None and len(names) == width:
+        names = [n.lower() if n.lower() in ("x", "y", "z") else n for n in names]
+        if not {"x", "y", "z"} <= set(names):
+            raise fail(path, f"text header names no x y z columns: {' '.join(names)}")
+    else:
+        known = {3: ["x", "y", "z"], 4: ["x", "y", "z", "intensity"], 6: ["x", "y", "z", "red", "green", "blue"],
+                 7: ["x", "y", "z", "red", "green", "blue", "intensity"]}
+        if width < 3:
+            raise fail(path, f"{width} column(s) per line; expected X Y Z [R G B [I]]")
+        names = known.get(width) or ["x", "y", "z"] + [f"column_{k}" for k in range(3, width)]
+    data = {name: table[:, k] for k, name in enumerate(names)}
+    world = np.column_stack([data.pop("x"), data.pop("y"), data.pop("z")])
+    return world_cloud(path, world, origin, data)
+
+
+def write_text(path, cloud: Cloud, classification=None, extra_dims=None, subset=None) -> None:
+    world, cols = _columns(cloud, classification, extra_dims, subset)
+    decimals = _coord_decimals(cloud)
+    delimiter = "," if str(path).lower().endswith(".csv") else " "
+    formats = [f"%.{decimals}f"] * 3 + ["%d" if a.dtype.kind in "iub" else "%.9g" for a in cols.values()]
+    table = np.empty((len(world), 3 + len(cols)), dtype=np.float64)
+    table[:, :3] = world
+    for k, a in enumerate(cols.values()):
+        if a.dtype.kind in "iu" and a.size and np.abs(a.astype(np.float64)).max() > 2**53:
+            raise fail(path, "64-bit integer column too large to write exactly as text")
+        table[:, 3 + k] = a
+    with atomic_output(path) as tmp:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write("# " + delimiter.join(["x", "y", "z"] + list(cols)) + "\n")
+            np.savetxt(f, table, fmt=formats, delimiter=delimiter)
+
+
+READERS = {"ply": read_ply, "pcd": read_pcd, "npz": read_npz, "text": read_text}
+WRITERS = {"ply": write_ply, "pcd": write_pcd, "npz": write_npz, "text": write_text}

@@ -1,0 +1,72 @@
+"""R5 cloth smoothing and P1 cloth ground filter (kernel: roadx_ti.kernels.cloth.csf).
+
+Both run the cloth simulation filter with the `cloth-simulation-filter` package's parameters;
+they differ in which side of the cloth they keep.
+"""
+from __future__ import annotations
+
+from pydantic import Field
+
+from roadx_ti.cloud import Cloud
+from roadx_ti.kernels.cloth import ClothResult, csf
+from roadx_ti.stages.base import CLASS_GROUND, Stage, StageContext, StageOptions, StageResult
+
+
+class ClothOptions(StageOptions):
+    cloth_resolution: float = Field(0.5, gt=0, description="C_r: particle spacing of the cloth (m)")
+    rigidness: int = Field(3, ge=1, le=3, description="cloth stiffness, 1 (steep terrain) .. "
+                           "3 (flat, urban) (constraint passes as in the CSF package)")
+    time_step: float = Field(0.65, gt=0, description="simulation time step (dimensionless, "
+                             "the package's default 0.65)")
+    iterations: int = Field(500, ge=1, description="C_n: maximum simulation iterations (count)")
+    class_threshold: float = Field(0.5, gt=0, description="C_t: a point within this distance of "
+                                   "the cloth is ground (m)")
+    slope_smooth: bool = Field(False, description="the package's bSloopSmooth post-processing of "
+                               "steep slopes")
+
+
+class ClothSmoothOptions(ClothOptions):
+    # METHODS.md R5 values (paper Table 1): C_r = 2, C_n = 500, C_t = 0.3
+    cloth_resolution: float = Field(2.0, gt=0, description="C_r: particle spacing of the cloth (m); paper 2")
+    class_threshold: float = Field(0.3, gt=0, description="C_t: a point within this distance of "
+                                   "the cloth is kept (m); paper 0.3")
+
+
+def _run_cloth(options: ClothOptions, cloud: Cloud) -> ClothResult:
+    return csf(cloud.xyz, cloth_resolution=options.cloth_resolution,
+               rigidness=options.rigidness, time_step=options.time_step,
+               iterations=options.iterations, class_threshold=options.class_threshold,
+               slope_smooth=options.slope_smooth)
+
+
+def _info(result: ClothResult) -> dict:
+    return {"ground": int(result.ground.sum()), "cloth_shape": list(result.cloth_z.shape),
+            "iterations": int(result.iterations)}
+
+
+class ClothSmooth(Stage):
+    """R5: keep the points within class_threshold of the cloth (the road surface candidates)."""
+    name = "cloth_smooth"
+    Options = ClothSmoothOptions
+
+    def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
+        if cloud.n == 0:
+            return StageResult()
+        result = _run_cloth(self.options, cloud)
+        return StageResult(keep=result.ground, info=_info(result))
+
+
+class ClothGround(Stage):
+    """P1: ground leaves the working set as class 2; the rest keeps its height above the cloth."""
+    name = "cloth_ground"
+    Options = ClothOptions
+
+    def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
+        if cloud.n == 0:
+            return StageResult()
+        result = _run_cloth(self.options, cloud)
+        keep = ~result.ground
+        # aligned with the working points; the pipeline narrows it to the kept ones
+        height = result.height_above(cloud.xyz)
+        return StageResult(keep=keep, removed_class=CLASS_GROUND,
+                           point_data={"height_above_ground": height}, info=_info(result))

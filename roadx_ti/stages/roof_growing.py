@@ -1,0 +1,71 @@
+"""P3 classified region growing from the roof seeds (kernels: vegetation.vegetation_mask,
+seeds.roof_growth_edges, seeds.grow_roof_segments, labels.relabel_compact).
+
+Needs roof_seeds before it (point_data 'normal', 'curvature', 'roof_seed'; ctx.facts['knn']).
+Semantics (order independent; see kernels/seeds.py): a growth edge joins kNN neighbours whose
+normals are within angle_max_deg, and, when either is vegetation-coloured (COM > com_threshold),
+whose 8-bit RGB distance is below color_max; growth passes only through seeds and points with
+curvature below expand_curvature_max; connected pieces holding a seed are roof segments, other
+points touching them by a growth edge join as leaves. Without colour the colour rule is off (a
+warning says so). Writes point_data 'roof_segment' (int32, compact ids, -1 = none).
+"""
+from __future__ import annotations
+
+import numpy as np
+from pydantic import Field
+
+from roadx_ti.cloud import Cloud
+from roadx_ti.kernels.vegetation import DEFAULT_COM_THRESHOLD
+from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
+
+
+class RoofGrowingOptions(StageOptions):
+    angle_max_deg: float = Field(15.0, gt=0, le=90, description="largest angle between the normals "
+                                 "of two neighbours that grow together (degrees)")
+    expand_curvature_max: float | None = Field(
+        0.05, gt=0, description="points with curvature at or above this (unitless) join a roof but "
+        "do not pass growth on; null = every point passes it on")
+    use_color: bool = Field(True, description="apply the vegetation colour rule when the cloud has RGB")
+    com_threshold: float = Field(DEFAULT_COM_THRESHOLD, description="points with COM vegetation index above this are "
+                                 "vegetation-coloured (COM is unitless; grey = 6.2815)")
+    color_max: float = Field(30.0, gt=0, description="a vegetation-coloured point joins only a "
+                             "neighbour closer than this in RGB (8-bit units)")
+
+
+class RoofGrowing(Stage):
+    name = "roof_growing"
+    Options = RoofGrowingOptions
+
+    def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
+        from roadx_ti.kernels.labels import relabel_compact
+        from roadx_ti.kernels.seeds import grow_roof_segments, roof_growth_edges
+        from roadx_ti.kernels.vegetation import vegetation_mask
+
+        o = self.options
+        n = cloud.n
+        knn = ctx.facts.get("knn")
+        needed = ("normal", "curvature", "roof_seed")
+        if knn is None or len(knn) != n or any(name not in ctx.point_data for name in needed):
+            raise ValueError("roof_growing needs roof_seeds right before it (kNN graph, normals, seeds)")
+        if n == 0 or knn.shape[1] == 0:
+            return StageResult(point_data={"roof_segment": np.full(n, -1, np.int32)},
+                               info={"segments": 0, "roof_points": 0})
+        colour = {}
+        vegetation_points = None
+        if o.use_color and cloud.has_color:
+            rgb = cloud.rgb8()
+            vegetation = vegetation_mask(rgb, o.com_threshold)
+            vegetation_points = int(np.count_nonzero(vegetation))
+            colour = dict(rgb=rgb, vegetation=vegetation, color_max=o.color_max)
+        elif o.use_color:
+            ctx.log.warning("roof_growing: the input has no colour; the vegetation colour rule is off")
+        edge_ok = roof_growth_edges(knn, ctx.point_data["normal"], angle_max_deg=o.angle_max_deg, **colour)
+        segment = grow_roof_segments(knn, edge_ok, ctx.point_data["roof_seed"],
+                                     curvature=ctx.point_data["curvature"],
+                                     expand_curvature_max=o.expand_curvature_max)
+        segment, count = relabel_compact(np.asarray(segment))
+        info = {"segments": int(count), "roof_points": int(np.count_nonzero(segment >= 0)),
+                "color_rule": bool(colour)}
+        if vegetation_points is not None:
+            info["vegetation_coloured"] = vegetation_points
+        return StageResult(point_data={"roof_segment": segment}, segment_id=segment, info=info)

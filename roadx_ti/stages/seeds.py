@@ -1,0 +1,64 @@
+"""P2 roof seed points (kernels: neighbors.knn, features.covariance_features, seeds.seed_constraints).
+
+Runs on the non-ground points (after cloth_ground). Computes the kNN graph and the neighbourhood
+features once and hands them on: point_data 'normal', 'curvature', 'roof_seed' (uint8), and
+ctx.facts['knn'] (int32 (n, k) indices into this stage's working set) for roof_growing. The stage
+narrows nothing, so those indices stay valid for the next stage.
+"""
+from __future__ import annotations
+
+import numpy as np
+from pydantic import Field
+
+from roadx_ti.cloud import Cloud
+from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
+
+
+class RoofSeedsOptions(StageOptions):
+    k: int = Field(10, ge=3, le=128, description="neighbours per point (p itself excluded)")
+    curvature_max: float | None = Field(
+        0.02, gt=0, le=1.0 / 3.0, description="c_t: planar candidates have curvature l0/(l0+l1+l2) "
+        "below this (unitless); null switches the planarity constraint off")
+    plane_coef: float = Field(0.8, ge=0.5, le=1.0, description="a candidate is planar when at least "
+                              "ceil(plane_coef * k) of its k neighbours are candidates too")
+    r_max: float | None = Field(1.5, gt=0, description="farthest of the k neighbours must be closer "
+                                "than this (m); depends on k and density; null = off")
+    alpha: float | None = Field(1.0, ge=0, description="gradient test G_z <= alpha * max(G_x, G_y) "
+                                "over the neighbourhood extent (unitless; 1 admits pitches up to "
+                                "about 45 degrees); null = off")
+
+
+class RoofSeeds(Stage):
+    name = "roof_seeds"
+    Options = RoofSeedsOptions
+
+    def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
+        from roadx_ti.kernels.features import covariance_features
+        from roadx_ti.kernels.neighbors import knn
+        from roadx_ti.kernels.seeds import seed_constraints
+
+        o = self.options
+        n = cloud.n
+        if n < 4:
+            seed = np.zeros(n, np.uint8)
+            ctx.facts["knn"] = np.full((n, 0), -1, np.int32)
+            return StageResult(point_data={"roof_seed": seed, "normal": np.zeros((n, 3), np.float32),
+                                           "curvature": np.ones(n, np.float32)},
+                               info={"skipped": "fewer than 4 points", "seeds": 0})
+        k = min(o.k, n - 1)
+        if k < o.k:
+            ctx.log.warning("roof_seeds: k = %d but only %d points: using k = %d", o.k, n, k)
+        indices, _ = knn(cloud.xyz, k)
+        features = covariance_features(cloud.xyz, indices)
+        masks = seed_constraints(indices, features["curvature"], features["max_distance"],
+                                 features["extent"], curvature_max=o.curvature_max,
+                                 plane_coef=o.plane_coef, r_max=o.r_max, alpha=o.alpha)
+        ctx.facts["knn"] = indices
+        seed = np.asarray(masks["seed"], np.uint8)
+        info = {"k": k, "seeds": int(seed.sum()),
+                "removed_by": {name: int(n - int(np.count_nonzero(masks[name])))
+                               for name in ("planar", "compact", "gradient")}}
+        return StageResult(point_data={"roof_seed": seed,
+                                       "normal": np.asarray(features["normal"], np.float32),
+                                       "curvature": np.asarray(features["curvature"], np.float32)},
+                           info=info)

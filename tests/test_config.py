@@ -1,0 +1,80 @@
+"""Config validation: every mistake is one line naming the key, through the real CLI, exit 2."""
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from roadx_ti import config
+
+GOOD = {
+    "pipeline": "road",
+    "input": {"synthetic": {"kind": "uav-road", "points": 20000, "seed": 1}},
+    "stages": [{"uniform_downsample": {"ratio": 0.5}}, {"grid_slope": {"step": 0.5}}],
+}
+
+
+def test_good_config_and_overrides():
+    cfg = config.from_mapping(GOOD, ["stages.grid_slope.step=0.25", "seed=7", "output.path=x/y.laz",
+                                     "stages.0.ratio=0.25"])
+    specs = dict(cfg.stage_list())
+    assert specs["grid_slope"].step == 0.25
+    assert specs["uniform_downsample"].ratio == 0.25
+    assert cfg.seed == 7 and cfg.output.path == "x/y.laz"
+    assert cfg.truth_classes == [11]
+    assert "grid_slope" in config.dump(cfg)
+
+
+@pytest.mark.parametrize("mapping, overrides, expected", [
+    ({"pipeline": "road", "colour": 1}, [], "colour = 1: unknown key"),
+    ({"pipeline": "rod"}, [], "pipeline = 'rod'"),
+    ({"threads": "many"}, [], "threads = 'many'"),
+    ({"threads": 0}, [], "threads = 0"),
+    ({"stages": [{"nope": {}}]}, [], "unknown stage 'nope'"),
+    (GOOD, ["stages.grid_slope.step=0"], "stages[1].grid_slope.step = 0"),
+    (GOOD, ["stages.grid_slope.step=-1"], "greater than 0"),
+    (GOOD, ["stages.grid_slope.stepp=1"], "stages[1].grid_slope.stepp = 1: unknown key"),
+    (GOOD, ["stages.grid_slope.step=abc"], "stages[1].grid_slope.step = 'abc'"),
+    (GOOD, ["stages.sor.k=3"], "no stage 'sor'"),
+    (GOOD, ["seed"], "expected KEY=VALUE"),
+    ({"stages": [{"uniform_downsample": {}}]}, [], "exactly one of target_points or ratio"),
+])
+def test_config_errors_are_one_line(mapping, overrides, expected):
+    with pytest.raises(config.ConfigError) as info:
+        config.from_mapping(mapping, overrides)
+    message = str(info.value)
+    assert expected in message
+    assert "\n" not in message
+
+
+def run_cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "roadx_ti", *args], capture_output=True, text=True,
+                          cwd=cwd, timeout=300)
+
+
+@pytest.mark.parametrize("body, expected", [
+    ("pipeline: road\nbogus: 1\n", "bogus = 1: unknown key"),
+    ("pipeline: road\nstages:\n  - grid_slope: {step: -2}\n", "stages[0].grid_slope.step = -2"),
+    ("pipeline: [unclosed\n", "is not valid YAML at line"),
+    ("- a\n- b\n", "must hold a mapping"),
+    ("pipeline: road\ninput: {paths: [does/not/exist.laz]}\n", "no such file"),
+    ("pipeline: road\n", "give input.paths, input.synthetic or --input"),
+])
+def test_cli_config_errors_exit_2(tmp_path, body, expected):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(textwrap.dedent(body))
+    proc = run_cli("run", str(cfg), cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and expected in lines[0], proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_cli_missing_config_and_usage(tmp_path):
+    proc = run_cli("run", str(tmp_path / "none.yaml"))
+    assert proc.returncode == 2 and "does not exist" in proc.stderr
+    proc = run_cli()
+    assert proc.returncode == 2
+    proc = run_cli("--version")
+    assert proc.returncode == 0 and "roadx_ti" in proc.stdout

@@ -1,0 +1,535 @@
+"""roadx_ti.io: LAS/LAZ, PLY, PCD, NPZ and text round trips, atomic writes and one-line errors.
+References are laspy (raw point records), open3d and numpy; no Taichi here."""
+from __future__ import annotations
+
+import hashlib
+import subprocess
+import sys
+from pathlib import Path
+
+import laspy
+import numpy as np
+import pytest
+
+from roadx_ti import io
+from roadx_ti.cloud import Cloud
+from roadx_ti.io import InputError
+from roadx_ti.io.atomic import atomic_output
+
+CLASSES = np.array([1, 2, 6, 11], dtype=np.uint8)
+
+
+def sha256(path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def one_line_error(path, fn, *args, **kw) -> str:
+    with pytest.raises(InputError) as err:
+        fn(*args, **kw)
+    msg = str(err.value)
+    assert "\n" not in msg and str(path) in msg, msg
+    return msg
+
+
+def leftovers(folder: Path) -> list:
+    return sorted(p.name for p in folder.iterdir() if ".partial" in p.name)
+
+
+def make_las(path, world, *, point_format=7, version="1.4", scale=0.01, rgb=None, classes=None,
+             gps_time=None) -> laspy.LasData:
+    header = laspy.LasHeader(point_format=point_format, version=version)
+    header.scales = np.full(3, scale)
+    header.offsets = np.zeros(3)
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = world[:, 0], world[:, 1], world[:, 2]
+    if rgb is not None:
+        las.red, las.green, las.blue = rgb[:, 0], rgb[:, 1], rgb[:, 2]
+    if classes is not None:
+        las.classification = classes
+    if gps_time is not None:
+        las.gps_time = gps_time
+    las.write(path)
+    return las
+
+
+def synthetic_cloud(n=500, seed=0, depth=8, base=(6_999_000.0, 9_999_000.0, 120.0)) -> tuple[Cloud, np.ndarray]:
+    """A cloud near 10^7 m with centimetre detail; returns it and its float64 world coordinates."""
+    rng = np.random.default_rng(seed)
+    world = np.round(rng.uniform(0, 400, (n, 3)) * 100) / 100 + np.array(base)
+    top = 255 if depth == 8 else 65535
+    rgb = rng.integers(0, top + 1, (n, 3)).astype(np.uint16)
+    rgb[0] = top   # make the depth unambiguous
+    cloud = Cloud.from_world(world, rgb=rgb, color_depth=depth,
+                             intensity=rng.integers(0, 65536, n).astype(np.uint16),
+                             classification=rng.choice(CLASSES, n))
+    return cloud, world
+
+
+# ----------------------------------------------------------------------------- real LAS / LAZ
+
+def real_files(shared_data) -> list[Path]:
+    files = sorted(p for p in shared_data.rglob("*") if p.suffix.lower() in (".las", ".laz"))
+    if not files:
+        pytest.skip(f"no LAS/LAZ files under {shared_data}")
+    return files
+
+
+def vlr_bytes(header) -> list:
+    return [(v.user_id, v.record_id, bytes(v.record_data_bytes())) for v in header.vlrs
+            if type(v).__name__ != "ExtraBytesVlr"]
+
+
+def test_las_round_trip_keeps_every_attribute_bit_exact(shared_data, tmp_path):
+    for src in real_files(shared_data):
+        digest = sha256(src)
+        cloud = io.read(src)
+        ref = laspy.read(src)                          # independent reference: laspy's own record
+        n = len(ref.points)
+        assert cloud.n == n and cloud.las is not None
+        rng = np.random.default_rng(n)
+        classes = rng.choice(CLASSES, n)
+        label = rng.integers(0, 5, n).astype(np.uint8)
+        segment = rng.integers(-1, 10_000, n).astype(np.int32)
+        out = tmp_path / src.name
+        io.write(out, cloud, classification=classes, extra_dims={"roadx_label": label, "segment_id": segment})
+        back = laspy.read(out)
+        # header kept
+        assert back.header.version == ref.header.version
+        assert back.header.point_format.id == ref.header.point_format.id
+        assert np.array_equal(back.header.scales, ref.header.scales)
+        assert np.array_equal(back.header.offsets, ref.header.offsets)
+        assert vlr_bytes(back.header) == vlr_bytes(ref.header), src.name
+        # every input dimension, in order, then the new ones
+        names = list(ref.point_format.dimension_names)
+        assert list(back.point_format.dimension_names) == names + ["roadx_label", "segment_id"]
+        for field in ref.points.array.dtype.names:
+            a, b = ref.points.array[field], back.points.array[field]
+            if field in ("classification", "raw_classification"):
+                keep = np.uint8(0xE0) if field == "raw_classification" else np.uint8(0)
+                assert np.array_equal(a & keep, b & keep), (src.name, field)   # legacy flag bits
+            else:
+                assert a.tobytes() == b.tobytes(), (src.name, field)
+        assert np.array_equal(np.asarray(back.classification), classes)
+        assert np.array_equal(np.asarray(back.roadx_label), label)
+        assert np.array_equal(np.asarray(back.segment_id), segment)
+        # read back through io: same local coordinates and origin
+        again = io.read(out)
+        assert np.array_equal(again.origin, cloud.origin)
+        assert np.array_equal(again.xyz, cloud.xyz)
+        assert np.array_equal(again.classification, classes)
+        assert sha256(src) == digest, f"{src} was modified"
+
+
+def test_real_las_cloud_fields_match_laspy(shared_data):
+    for src in real_files(shared_data):
+        cloud = io.read(src)
+        ref = laspy.read(src)
+        world = np.column_stack([ref.x, ref.y, ref.z])
+        assert np.all(cloud.origin == np.floor(ref.header.mins))
+        assert np.abs(cloud.xyz.astype(np.float64) + cloud.origin - world).max() < 1e-4
+        assert np.array_equal(cloud.classification, np.asarray(ref.classification))
+        assert np.array_equal(cloud.intensity, np.asarray(ref.intensity))
+        if "red" in ref.point_format.dimension_names and np.any(ref.red):
+            assert cloud.color_depth == 16
+            assert np.array_equal(cloud.rgb, np.column_stack([ref.red, ref.green, ref.blue]))
+        else:   # the IGN tiles carry colour fields that are all zero
+            assert cloud.rgb is None and cloud.color_depth == 0
+        info = io.info(src)
+        assert info["point_count"] == len(ref.points)
+        hist = np.bincount(np.asarray(ref.classification), minlength=256)
+        assert info["class_histogram"] == {c: int(k) for c, k in enumerate(hist) if k}
+        assert np.allclose(info["bounds"]["min"], world.min(axis=0))
+        assert np.allclose(info["bounds"]["max"], world.max(axis=0))
+        assert info["extra_dimensions"] == list(ref.point_format.extra_dimension_names)
+        if "tiles" in src.parts:
+            assert info["color"] == "all-zero" and "EPSG:2154" in info["crs"]
+
+
+def test_read_headers_match_laspy(shared_data):
+    files = real_files(shared_data)
+    for path, bounds, count in io.read_headers(files):
+        h = laspy.open(path).header
+        assert count == h.point_count
+        assert bounds == (h.mins[0], h.mins[1], h.maxs[0], h.maxs[1])
+
+
+def test_bounds_windows_partition_the_file(shared_data):
+    src = shared_data / "roof" / "ign_870000_6618000.las"
+    if not src.exists():
+        pytest.skip(f"{src} is absent")
+    full = io.read(src)
+    world = full.world_xyz()
+    xm, ym = np.median(world[:, 0]), np.median(world[:, 1])
+    lo, hi = world.min(axis=0) - 1, world.max(axis=0) + 1
+    windows = [(lo[0], lo[1], xm, ym), (xm, lo[1], hi[0], ym), (lo[0], ym, xm, hi[1]), (xm, ym, hi[0], hi[1])]
+    gps = []
+    for w in windows:
+        part = io.read(src, bounds=w)
+        assert np.array_equal(part.origin, full.origin)   # tiles of one file share the origin
+        inside = (world[:, 0] >= w[0]) & (world[:, 0] < w[2]) & (world[:, 1] >= w[1]) & (world[:, 1] < w[3])
+        assert np.array_equal(part.xyz, full.xyz[inside])
+        assert np.array_equal(part.las.points.array, full.las.points.array[inside])
+        gps.append(np.asarray(part.las.gps_time))
+    assert sum(map(len, gps)) == full.n
+    shared_origin = full.origin + [-100.0, 50.0, 3.0]
+    moved = io.read(src, origin=shared_origin)
+    assert np.array_equal(moved.xyz, (world - shared_origin).astype(np.float32))
+
+
+def test_bounds_are_half_open(tmp_path):
+    world = np.array([[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0], [5.0, 5.0, 1.0]]) + [500000.0, 6e6, 0]
+    src = tmp_path / "edges.laz"
+    make_las(src, world, point_format=6)
+    part = io.read(src, bounds=(500000.0, 6e6, 500010.0, 6e6 + 10))
+    assert np.allclose(part.world_xyz()[:, :2], world[[0, 3], :2])
+    assert io.read(src, bounds=(0, 0, 1, 1)).n == 0
+
+
+# ------------------------------------------------------------------------- LAS special cases
+
+def test_classes_above_31_upgrade_legacy_format(tmp_path):
+    rng = np.random.default_rng(3)
+    world = rng.uniform(0, 50, (200, 3)) + [600000, 5e6, 10]
+    rgb = rng.integers(0, 65536, (200, 3))
+    src = tmp_path / "legacy.las"
+    make_las(src, world, point_format=3, version="1.2", rgb=rgb, classes=rng.integers(0, 31, 200),
+             gps_time=rng.uniform(0, 1e5, 200))
+    cloud = io.read(src)
+    classes = np.full(200, 64, dtype=np.uint8)
+    io.write(tmp_path / "wide.las", cloud, classification=classes)
+    back = laspy.read(tmp_path / "wide.las")
+    ref = laspy.read(src)
+    assert back.header.point_format.id == 7 and str(back.header.version) == "1.4"
+    assert np.array_equal(np.asarray(back.classification), classes)
+    for name in ("X", "Y", "Z", "intensity", "red", "green", "blue", "gps_time", "return_number"):
+        assert np.array_equal(np.asarray(back[name]), np.asarray(ref[name])), name
+    # classes that fit keep the legacy format and its flag bits
+    io.write(tmp_path / "same.las", cloud, classification=np.full(200, 11, dtype=np.uint8))
+    assert laspy.read(tmp_path / "same.las").header.point_format.id == 3
+
+
+def test_extra_dims_replace_existing_ones(tmp_path):
+    world = np.random.default_rng(1).uniform(0, 20, (100, 3))
+    src = tmp_path / "eb.laz"
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.add_extra_dims([laspy.ExtraBytesParams("keep_me", "f4"), laspy.ExtraBytesParams("roadx_label", "u1"),
+                           laspy.ExtraBytesParams("segment_id", "u2")])
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = world.T
+    las.keep_me = np.arange(100, dtype=np.float32) / 7
+    las.roadx_label = np.ones(100, np.uint8)
+    las.write(src)
+    cloud = io.read(src)
+    label, seg = np.arange(100, dtype=np.uint8) % 3, np.arange(100, dtype=np.int32) - 50
+    io.write(tmp_path / "out.laz", cloud, extra_dims={"roadx_label": label, "segment_id": seg})
+    back = laspy.read(tmp_path / "out.laz")
+    names = list(back.point_format.extra_dimension_names)
+    assert names.count("roadx_label") == 1 and names.count("segment_id") == 1 and names[0] == "keep_me"
+    assert np.asarray(back.segment_id).dtype == np.int32          # re-declared with the new type
+    assert np.array_equal(np.asarray(back.keep_me), np.asarray(las.keep_me))
+    assert np.array_equal(np.asarray(back.roadx_label), label)
+    assert np.array_equal(np.asarray(back.segment_id), seg)
+    with pytest.raises(InputError, match="standard"):
+        io.write(tmp_path / "bad.laz", cloud, extra_dims={"intensity": label})
+
+
+def test_subset_writes_only_those_points(tmp_path):
+    cloud, world = synthetic_cloud(300)
+    src = tmp_path / "src.laz"
+    io.write(src, cloud)
+    las_cloud = io.read(src)
+    mask = np.arange(300) % 3 == 0
+    seg = np.arange(300, dtype=np.int32)
+    io.write(tmp_path / "sub.laz", las_cloud, subset=mask, extra_dims={"segment_id": seg})
+    io.write(tmp_path / "sub_idx.laz", las_cloud, subset=np.flatnonzero(mask), extra_dims={"segment_id": seg})
+    for name in ("sub.laz", "sub_idx.laz"):
+        back = laspy.read(tmp_path / name)
+        assert np.array_equal(back.points.array[list(las_cloud.las.points.array.dtype.names)],
+                              las_cloud.las.points.array[mask])
+        assert np.array_equal(np.asarray(back.segment_id), seg[mask])
+
+
+def test_all_zero_colour_is_no_colour(tmp_path):
+    world = np.random.default_rng(2).uniform(0, 10, (50, 3))
+    src = tmp_path / "zero.las"
+    make_las(src, world, rgb=np.zeros((50, 3), np.uint16))
+    cloud = io.read(src)
+    assert cloud.rgb is None and cloud.color_depth == 0
+    assert io.info(src)["color"] == "all-zero"
+    make_las(tmp_path / "eight.las", world, rgb=np.full((50, 3), 200))
+    assert io.read(tmp_path / "eight.las").color_depth == 8
+    assert io.info(tmp_path / "eight.las")["color"] == "8-bit"
+
+
+def test_las_record_keeps_1e7_coordinates_exact(tmp_path):
+    rng = np.random.default_rng(4)
+    world = np.round((rng.uniform(0, 300, (1000, 3)) + [9_999_000.0, 9_998_500.0, 50.0]) * 100) / 100
+    src = tmp_path / "far.las"
+    make_las(src, world, point_format=6)
+    cloud = io.read(src)
+    # float32 local coordinates keep centimetre detail
+    assert np.abs(cloud.xyz.astype(np.float64) + cloud.origin - world).max() < 1e-4
+    io.write(tmp_path / "far_out.las", cloud, classification=rng.choice(CLASSES, 1000))
+    back = laspy.read(tmp_path / "far_out.las")
+    ref = laspy.read(src)
+    for k in "XYZ":
+        assert np.array_equal(back.points.array[k], ref.points.array[k])
+
+
+@pytest.mark.parametrize("depth", [8, 16])
+@pytest.mark.parametrize("ext", [".las", ".laz"])
+def test_synthetic_cloud_to_las(tmp_path, depth, ext):
+    cloud, world = synthetic_cloud(depth=depth)
+    cloud.attributes["confidence"] = np.linspace(0, 1, cloud.n).astype(np.float32)
+    out = tmp_path / f"synth{ext}"
+    io.write(out, cloud, extra_dims={"segment_id": np.arange(cloud.n, dtype=np.int32)})
+    las = laspy.read(out)
+    assert las.header.point_format.id == 7 and str(las.header.version) == "1.4"
+    assert np.allclose(las.header.scales, 0.001) and np.array_equal(las.header.offsets, cloud.origin)
+    back = io.read(out)
+    got = back.world_xyz()
+    assert np.abs(got - world).max() <= 0.0005 + 1e-6              # within the 1 mm scale
+    assert np.array_equal(np.round(got * 100), np.round(world * 100))   # centimetres survive
+    expected_rgb = cloud.rgb * 257 if depth == 8 else cloud.rgb      # LAS colour is 16-bit
+    assert np.array_equal(back.rgb, expected_rgb) and back.color_depth == 16
+    assert np.array_equal(back.rgb8(), cloud.rgb8())
+    assert np.array_equal(back.intensity, cloud.intensity)
+    assert np.array_equal(back.classification, cloud.classification)
+    assert np.array_equal(np.asarray(las.confidence), cloud.attributes["confidence"])
+    assert np.array_equal(np.asarray(las.segment_id), np.arange(cloud.n))
+
+
+def test_las_reading_does_not_import_open3d(tmp_path):
+    src = tmp_path / "a.laz"
+    make_las(src, np.random.default_rng(0).uniform(0, 5, (10, 3)), point_format=6)
+    code = (f"import sys, roadx_ti.io as io; io.read({str(src)!r}); io.info({str(src)!r}); "
+            "print('open3d' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+# ----------------------------------------------------------------------------- other formats
+
+@pytest.mark.parametrize("ext", [".ply", ".pcd", ".npz", ".xyz", ".txt", ".csv"])
+@pytest.mark.parametrize("depth", [8, 16])
+def test_other_format_round_trip(tmp_path, ext, depth):
+    cloud, world = synthetic_cloud(depth=depth)
+    label = (np.arange(cloud.n) % 4).astype(np.uint8)
+    seg = (np.arange(cloud.n) - 7).astype(np.int32)
+    out = tmp_path / f"cloud{ext}"
+    io.write(out, cloud, extra_dims={"roadx_label": label, "segment_id": seg})
+    back = io.read(out)
+    tol = {".xyz": 1e-6, ".txt": 1e-6, ".csv": 1e-6}.get(ext, 0.0)
+    assert np.abs(back.world_xyz() - (cloud.xyz.astype(np.float64) + cloud.origin)).max() <= tol
+    if ext in (".npz", ".ply"):   # both store the origin: local coordinates come back bit for bit
+        assert np.array_equal(back.xyz, cloud.xyz) and np.array_equal(back.origin, cloud.origin)
+    if ext == ".pcd" and depth == 16:    # PCD colour is 8-bit
+        assert back.color_depth == 8 and np.array_equal(back.rgb, np.round(cloud.rgb / 257.0))
+    else:
+        assert back.color_depth == depth and np.array_equal(back.rgb, cloud.rgb)
+    assert np.array_equal(back.intensity, cloud.intensity)
+    assert np.array_equal(back.classification, cloud.classification)
+    assert np.array_equal(back.attributes["roadx_label"], label)
+    assert np.array_equal(back.attributes["segment_id"], seg)
+    info = io.info(out)
+    assert info["point_count"] == cloud.n and info["color_depth"] == back.color_depth
+
+
+def test_las_to_ply_keeps_extra_dims(shared_data, tmp_path):
+    src = shared_data / "road" / "ahn3_2386_9702_roads.laz"
+    if not src.exists():
+        pytest.skip(f"{src} is absent")
+    cloud = io.read(src)
+    io.write(tmp_path / "road.ply", cloud)
+    back = io.read(tmp_path / "road.ply")
+    # PLY holds the exact doubles; the reader's float32 local coordinates are those of the LAS read
+    assert np.array_equal(back.xyz.astype(np.float64) + back.origin, cloud.xyz.astype(np.float64) + cloud.origin)
+    assert np.array_equal(back.attributes["bgt_road"], np.asarray(cloud.las.bgt_road))
+    assert np.array_equal(back.classification, cloud.classification)
+
+
+def test_ply_and_pcd_written_by_open3d(tmp_path):
+    o3d = pytest.importorskip("open3d")
+    rng = np.random.default_rng(5)
+    pts, col = rng.uniform(0, 100, (200, 3)) + [3e5, 5e6, 0], rng.uniform(0, 1, (200, 3))
+    legacy = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
+    legacy.colors = o3d.utility.Vector3dVector(col)
+    for name, ascii_ in (("a.ply", True), ("b.ply", False), ("c.pcd", False), ("d.pcd", True)):
+        o3d.io.write_point_cloud(str(tmp_path / name), legacy, write_ascii=ascii_)
+        ref = o3d.t.io.read_point_cloud(str(tmp_path / name))
+        cloud = io.read(tmp_path / name)
+        world = ref.point.positions.numpy().astype(np.float64)
+        assert np.array_equal(cloud.xyz, (world - cloud.origin).astype(np.float32))
+        assert cloud.color_depth == 8
+        assert np.array_equal(cloud.rgb, ref.point.colors.numpy().astype(np.uint16))
+
+
+def test_ply_float_colour_scales_to_8_bit(tmp_path):
+    n = 20
+    rng = np.random.default_rng(6)
+    dtype = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("red", "<f4"), ("green", "<f4"),
+                      ("blue", "<f4"), ("scalar_Intensity", "<f4"), ("label", "i2")])
+    table = np.zeros(n, dtype)
+    for k in "xyz":
+        table[k] = rng.uniform(0, 10, n)
+    for k in ("red", "green", "blue"):
+        table[k] = rng.uniform(0, 1, n)
+    table["scalar_Intensity"] = rng.integers(0, 4000, n)
+    table["label"] = -rng.integers(0, 300, n)
+    head = ("ply\nformat binary_little_endian 1.0\nelement vertex 20\n"
+            + "".join(f"property {t} {k}\n" for k, t in zip(dtype.names, ["double"] * 3 + ["float"] * 4 + ["short"]))
+            + "end_header\n")
+    path = tmp_path / "cc.ply"
+    path.write_bytes(head.encode() + table.tobytes())
+    cloud = io.read(path)
+    assert cloud.color_depth == 8
+    assert np.array_equal(cloud.rgb[:, 0], np.round(table["red"] * 255))
+    assert np.array_equal(cloud.intensity, table["scalar_Intensity"].astype(np.uint16))
+    assert np.array_equal(cloud.attributes["label"], table["label"])
+
+
+def test_text_layouts(tmp_path):
+    rng = np.random.default_rng(7)
+    xyz = np.round(rng.uniform(0, 100, (30, 3)), 3) + [1e6, 2e6, 0]
+    rgb = rng.integers(0, 256, (30, 3))
+    inten = rng.integers(0, 1000, 30)
+    rows = [" ".join(f"{v:.3f}" for v in p) for p in xyz]
+    (tmp_path / "plain.xyz").write_text("\n".join(rows) + "\n")
+    (tmp_path / "rgbi.txt").write_text("# scanner export\n" + "\n".join(
+        f"{r} {c[0]} {c[1]} {c[2]} {i}" for r, c, i in zip(rows, rgb, inten)) + "\n")
+    (tmp_path / "pdal.csv").write_text('"X","Y","Z","Intensity","Classification"\n' + "\n".join(
+        f"{p[0]:.3f},{p[1]:.3f},{p[2]:.3f},{i},2" for p, i in zip(xyz, inten)) + "\n")
+    (tmp_path / "cc.txt").write_text("//X,Y,Z,R,G,B\n" + "\n".join(
+        f"{p[0]:.3f},{p[1]:.3f},{p[2]:.3f},{c[0]},{c[1]},{c[2]}" for p, c in zip(xyz, rgb)) + "\n")
+    for name in ("plain.xyz", "rgbi.txt", "pdal.csv", "cc.txt"):
+        cloud = io.read(tmp_path / name)
+        assert np.abs(cloud.world_xyz() - xyz).max() < 1e-4, name   # float32 local coordinates
+    assert io.read(tmp_path / "plain.xyz").rgb is None
+    rgbi = io.read(tmp_path / "rgbi.txt")
+    assert rgbi.color_depth == 8 and np.array_equal(rgbi.rgb, rgb) and np.array_equal(rgbi.intensity, inten)
+    pdal = io.read(tmp_path / "pdal.csv")
+    assert np.array_equal(pdal.intensity, inten) and np.all(pdal.classification == 2)
+    assert np.array_equal(io.read(tmp_path / "cc.txt").rgb, rgb)
+
+
+def test_zero_points_give_an_empty_cloud(tmp_path):
+    make_las(tmp_path / "none.laz", np.zeros((0, 3)), point_format=6)
+    assert io.read(tmp_path / "none.laz").n == 0
+    (tmp_path / "none.xyz").write_text("# x y z\n")
+    assert io.read(tmp_path / "none.xyz").n == 0
+    empty = Cloud(xyz=np.zeros((0, 3), np.float32), origin=np.zeros(3))
+    for ext in (".laz", ".ply", ".npz", ".xyz"):
+        io.write(tmp_path / f"empty{ext}", empty)
+        assert io.read(tmp_path / f"empty{ext}").n == 0
+
+
+# ------------------------------------------------------------------------ atomic and safety
+
+def test_atomic_write_leaves_nothing_when_the_writer_fails(tmp_path, monkeypatch):
+    cloud, _ = synthetic_cloud(100)
+    out = tmp_path / "out.laz"
+    out.write_bytes(b"previous result")
+
+    def broken_write(self, destination, *args, **kw):
+        destination.write(b"LASF partial bytes")
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(laspy.LasData, "write", broken_write)
+    with pytest.raises(RuntimeError, match="disk full"):
+        io.write(out, cloud)
+    assert out.read_bytes() == b"previous result" and leftovers(tmp_path) == []
+    new = tmp_path / "new.laz"
+    with pytest.raises(RuntimeError):
+        io.write(new, cloud)
+    assert not new.exists() and leftovers(tmp_path) == []
+    monkeypatch.undo()
+    io.write(new, cloud)
+    assert io.read(new).n == cloud.n and leftovers(tmp_path) == []
+
+
+def test_atomic_output_context(tmp_path):
+    target = tmp_path / "summary.json"
+    with atomic_output(target) as tmp:
+        assert tmp.parent == tmp_path and tmp.suffix == ".json"
+        tmp.write_text("{}")
+        assert not target.exists()
+    assert target.read_text() == "{}" and leftovers(tmp_path) == []
+    plain = tmp_path / "plain.json"
+    plain.write_text("{}")
+    assert target.stat().st_mode & 0o777 == plain.stat().st_mode & 0o777   # not mkstemp's 0600
+    with pytest.raises(KeyError):
+        with atomic_output(target) as tmp:
+            tmp.write_text("half")
+            raise KeyError("boom")
+    assert target.read_text() == "{}" and leftovers(tmp_path) == []
+
+
+def test_writing_over_the_input_is_refused(tmp_path):
+    src = tmp_path / "in.laz"
+    make_las(src, np.random.default_rng(0).uniform(0, 5, (10, 3)), point_format=6)
+    digest = sha256(src)
+    cloud = io.read(src)
+    one_line_error(src, io.write, src, cloud)
+    link = tmp_path / "link.laz"
+    link.symlink_to(src)
+    msg = one_line_error(link, io.check_output_path, link, [src])
+    assert "input" in msg
+    one_line_error(tmp_path / "sub" / ".." / "in.laz", io.check_output_path, tmp_path / "sub" / ".." / "in.laz", [src])
+    missing = tmp_path / "nowhere" / "out.laz"
+    assert "does not exist" in one_line_error(missing, io.write, missing, cloud)
+    assert sha256(src) == digest
+    assert io.check_output_path(tmp_path / "ok.laz", [src]) == tmp_path / "ok.laz"
+
+
+# ------------------------------------------------------------------------------------ errors
+
+def test_error_messages_name_the_file_and_the_problem(tmp_path):
+    missing = tmp_path / "missing.laz"
+    assert "no such file" in one_line_error(missing, io.read, missing)
+    empty = tmp_path / "empty.las"
+    empty.touch()
+    assert "empty file" in one_line_error(empty, io.read, empty)
+    doc = tmp_path / "notes.docx"
+    doc.write_text("hello")
+    assert "unknown extension" in one_line_error(doc, io.read, doc)
+    fake = tmp_path / "fake.las"
+    fake.write_text("this is not a LAS file but it is long enough " * 20)
+    assert "not a LAS/LAZ" in one_line_error(fake, io.read, fake)
+    fake_ply = tmp_path / "fake.ply"
+    fake_ply.write_text("hello\n")
+    assert "not a PLY" in one_line_error(fake_ply, io.read, fake_ply)
+    for name, problem in (("fake.pcd", "not a PCD"), ("fake.npz", "not an NPZ")):
+        (tmp_path / name).write_text("hello\n")
+        assert problem in one_line_error(tmp_path / name, io.read, tmp_path / name)
+    nan = tmp_path / "nan.xyz"
+    nan.write_text("1 2 3\nnan 2 3\n4 inf 6\n7 8 9\n")
+    assert "2 of 4 points" in one_line_error(nan, io.read, nan)
+    bad_npz = tmp_path / "inf.npz"
+    np.savez(bad_npz, xyz=np.array([[0, 0, np.inf], [1, 1, 1]]))
+    assert "1 of 2 points" in one_line_error(bad_npz, io.read, bad_npz)
+    ragged = tmp_path / "ragged.txt"
+    ragged.write_text("1 2 3\n4 5\n")
+    one_line_error(ragged, io.read, ragged)
+
+
+@pytest.mark.parametrize("ext", [".las", ".laz"])
+def test_truncated_las_is_reported(tmp_path, ext):
+    rng = np.random.default_rng(8)
+    src = tmp_path / f"whole{ext}"
+    make_las(src, rng.uniform(0, 50, (5000, 3)), point_format=7, rgb=rng.integers(0, 65536, (5000, 3)))
+    data = src.read_bytes()
+    for cut in (len(data) // 2, len(data) - 5):
+        cut_file = tmp_path / f"cut{ext}"
+        cut_file.write_bytes(data[:cut])
+        for fn in (io.read, io.info, lambda p: io.read(p, bounds=(-1, -1, 100, 100))):
+            msg = one_line_error(cut_file, fn, cut_file)
+            assert "truncated or corrupt" in msg or "truncated" in msg, msg
+
+
+def test_too_many_points_points_to_tiling(tmp_path):
+    src = tmp_path / "huge.las"
+    make_las(src, np.zeros((3, 3)), point_format=1, version="1.2")
+    raw = bytearray(src.read_bytes())
+    raw[107:111] = np.uint32(3_000_000_000).tobytes()    # legacy point count in the LAS 1.2 header
+    src.write_bytes(bytes(raw))
+    assert "tiles" in one_line_error(src, io.read, src)

@@ -1,0 +1,147 @@
+"""kNN and radius search against scipy's cKDTree (an independent exact reference)."""
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from roadx_ti.kernels import neighbors
+from roadx_ti.kernels.grid import build_grid
+
+
+def _clouds(small):
+    rng = np.random.default_rng(7)
+    n = 1500 if small else 6000
+    uniform = rng.random((n, 3)) * [40, 30, 4]
+    centres = rng.random((12, 3)) * 50
+    clustered = centres[rng.integers(0, 12, n)] + rng.normal(0, 0.3, (n, 3))
+    base = rng.random((n // 4, 3)) * 10
+    duplicated = np.concatenate([base, base, base[: n // 8], base[: n // 8] + 1e-3, rng.random((n // 4, 3))])
+    grid_pts = np.stack(np.meshgrid(np.arange(12), np.arange(12), np.arange(8)), -1).reshape(-1, 3) * 0.5
+    return {"uniform": uniform, "clustered": clustered, "duplicated": duplicated, "lattice": grid_pts}
+
+
+def _real_cloud(shared_data, n_max):
+    laspy = pytest.importorskip("laspy")
+    las = laspy.read(shared_data / "roof" / "ign_870000_6618000.las")
+    xyz = np.stack([las.x, las.y, las.z], 1)
+    xyz = (xyz - xyz.min(0)).astype(np.float32)
+    return xyz[:n_max]
+
+
+def assert_knn_matches_kdtree(xyz, k, idx, dist):
+    """Exact up to ties: rows agree on the k-th distance, and every neighbour strictly closer
+    than it is the same; members at the k-th distance may differ only among equidistant points.
+    Returns the number of rows whose k-th distance is tied in the reference."""
+    xyz64 = xyz.astype(np.float64)
+    ref_d, ref_i = cKDTree(xyz64).query(xyz64, k + 1)
+    n = len(xyz)
+    # our own distances, recomputed in float64, for the indices we return
+    own = np.linalg.norm(xyz64[idx] - xyz64[:, None, :], axis=2)
+    assert (idx != np.arange(n)[:, None]).all(), "self must be excluded"
+    assert (np.diff(dist, axis=1) >= 0).all(), "rows must be sorted by distance"
+    np.testing.assert_allclose(dist, own, rtol=1e-5, atol=1e-5)
+    # reference k-th distance excluding self: drop self from the k+1 list
+    ref_wo_self = np.where(ref_i == np.arange(n)[:, None], np.inf, ref_d)
+    ref_sorted = np.sort(ref_wo_self, axis=1)[:, :k]
+    tol = 1e-5 * (1 + np.abs(xyz64).max())
+    np.testing.assert_allclose(own.max(1), ref_sorted[:, -1], atol=tol)
+    ties = 0
+    for i in range(n):
+        kth = ref_sorted[i, -1]
+        ref_set = set(ref_i[i][(ref_i[i] != i) & (ref_d[i] < kth - tol)].tolist())
+        got_set = set(idx[i][own[i] < kth - tol].tolist())
+        assert ref_set == got_set, f"row {i}: strictly closer neighbours differ"
+        if np.sum(np.abs(ref_wo_self[i] - kth) <= tol) > 1 or len(set(idx[i].tolist()) ^ set(ref_i[i][ref_i[i] != i][:k].tolist())):
+            ties += 1
+    return ties
+
+
+@pytest.mark.parametrize("kind", ["uniform", "clustered", "duplicated", "lattice"])
+@pytest.mark.parametrize("k", [1, 16, 40, 200])
+def test_knn_matches_kdtree(ti_arch, kind, k):
+    small = ti_arch != "cpu"
+    xyz = _clouds(small)[kind].astype(np.float32)
+    idx, dist = neighbors.knn(xyz, k)
+    assert idx.shape == (len(xyz), k) and idx.dtype == np.int32 and dist.dtype == np.float32
+    ties = assert_knn_matches_kdtree(xyz, k, idx, dist)
+    print(f"{kind} k={k}: {ties} rows with ties at the k-th distance")
+    # ties are broken by index: equal distances appear in ascending index order
+    same = (dist[:, 1:] == dist[:, :-1])
+    assert (idx[:, 1:][same] > idx[:, :-1][same]).all()
+
+
+@pytest.mark.parametrize("k", [16, 64])
+def test_knn_real_cloud(ti_arch, shared_data, k):
+    xyz = _real_cloud(shared_data, 4000 if ti_arch != "cpu" else 70840)
+    idx, dist = neighbors.knn(xyz, k)
+    ties = assert_knn_matches_kdtree(xyz, k, idx, dist)
+    print(f"real k={k}: {ties} rows with ties at the k-th distance")
+
+
+def test_knn_deterministic_and_grid_reuse(ti_arch):
+    xyz = _clouds(True)["duplicated"].astype(np.float32)
+    a = neighbors.knn(xyz, 12)
+    g = build_grid(xyz, 0.37)
+    b = neighbors.knn(xyz, 12, grid=g)
+    c = neighbors.knn(xyz, 12, cell_size=5.0)
+    for other in (b, c):
+        np.testing.assert_array_equal(a[0], other[0])
+        np.testing.assert_array_equal(a[1], other[1])
+
+
+def test_knn_far_outliers_use_fallback(ti_arch):
+    rng = np.random.default_rng(3)
+    xyz = np.concatenate([rng.random((800, 3)) * [10, 10, 0.1], [[5000, 5000, 300], [-4000, 20, 0]]])
+    xyz = xyz.astype(np.float32)
+    idx, dist = neighbors.knn(xyz, 5, cell_size=0.2)
+    assert_knn_matches_kdtree(xyz, 5, idx, dist)
+    m = neighbors.knn_mean_distance(xyz, 40, cell_size=0.2)
+    ref_d, _ = cKDTree(xyz.astype(np.float64)).query(xyz.astype(np.float64), 41)
+    np.testing.assert_allclose(m, ref_d[:, 1:].mean(1), rtol=2e-5, atol=1e-5)
+
+
+def test_knn_rejects_bad_k(ti_arch):
+    xyz = np.zeros((5, 3), np.float32)
+    with pytest.raises(ValueError, match="at least k\\+1 points"):
+        neighbors.knn(xyz, 5)
+    with pytest.raises(ValueError):
+        neighbors.knn(np.zeros((600, 3), np.float32), 513)
+
+
+@pytest.mark.parametrize("k", [1, 20, 100])
+@pytest.mark.parametrize("include_self", [False, True])
+def test_knn_mean_distance(ti_arch, k, include_self):
+    xyz = _clouds(ti_arch != "cpu")["clustered"].astype(np.float32)
+    got = neighbors.knn_mean_distance(xyz, k, include_self=include_self)
+    ref_d, _ = cKDTree(xyz.astype(np.float64)).query(xyz.astype(np.float64), k + (0 if include_self else 1))
+    ref_d = ref_d.reshape(len(xyz), -1)
+    expected = ref_d.mean(1) if include_self else ref_d[:, 1:].mean(1)
+    np.testing.assert_allclose(got, expected, rtol=2e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("kind", ["uniform", "duplicated", "lattice"])
+def test_radius_search_matches_kdtree(ti_arch, kind):
+    xyz = _clouds(ti_arch != "cpu")[kind].astype(np.float32)
+    radius = 0.5 if kind == "lattice" else 1.1
+    offsets, idx = neighbors.radius_search(xyz, radius)
+    xyz64 = xyz.astype(np.float64)
+    tree = cKDTree(xyz64)
+    ref = tree.query_ball_point(xyz64, radius)
+    assert offsets[0] == 0 and offsets[-1] == len(idx)
+    boundary = 0
+    for i in range(len(xyz)):
+        row = idx[offsets[i]:offsets[i + 1]]
+        d = np.linalg.norm(xyz64[row] - xyz64[i], axis=1)
+        assert (np.diff(d) >= -1e-6).all()
+        want = {j for j in ref[i] if j != i}
+        diff = set(row.tolist()) ^ want
+        # only points within float32 rounding of the sphere may differ
+        for j in diff:
+            assert abs(np.linalg.norm(xyz64[j] - xyz64[i]) - radius) < 1e-5
+            boundary += 1
+    print(f"{kind}: {boundary} boundary disagreements")
+    # max_neighbors keeps the nearest prefix of every row
+    off2, idx2 = neighbors.radius_search(xyz, radius, max_neighbors=3)
+    counts = np.minimum(np.diff(offsets), 3)
+    np.testing.assert_array_equal(np.diff(off2), counts)
+    for i in range(0, len(xyz), 97):
+        np.testing.assert_array_equal(idx2[off2[i]:off2[i + 1]], idx[offsets[i]:offsets[i] + counts[i]])

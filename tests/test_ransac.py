@@ -1,0 +1,107 @@
+import numpy as np
+import open3d as o3d
+import pytest
+
+from roadx_ti.kernels import ransac
+from roadx_ti.kernels.common import as_ndarray, is_ndarray
+
+THRESHOLD = 0.1
+GROUND_NORMAL = np.array([0.05, -0.03, 1.0]) / np.linalg.norm([0.05, -0.03, 1.0])
+
+
+def synthetic_scene(seed, n):
+    """60 % noisy tilted ground plane, 15 % wall, 10 % roof plane, 15 % uniform clutter.
+    Returns xyz float32 (n, 3) and the part each point came from (0 ground .. 3 clutter)."""
+    rng = np.random.default_rng(seed)
+    sizes = [int(0.6 * n), int(0.15 * n), int(0.1 * n)]
+    sizes.append(n - sum(sizes))
+    xy = rng.uniform(0, 100, (sizes[0], 2))
+    z = (2.0 - GROUND_NORMAL[0] * xy[:, 0] - GROUND_NORMAL[1] * xy[:, 1]) / GROUND_NORMAL[2]
+    ground = np.c_[xy, z + rng.normal(0, 0.02, sizes[0])]
+    wall = np.c_[rng.uniform(0, 100, sizes[1]), 30.0 + rng.normal(0, 0.02, sizes[1]),
+                 rng.uniform(0, 20, sizes[1])]
+    roof = np.c_[rng.uniform(20, 60, sizes[2]), rng.uniform(40, 80, sizes[2]),
+                 12.0 + rng.normal(0, 0.02, sizes[2])]
+    clutter = rng.uniform([0, 0, 0], [100, 100, 25], (sizes[3], 3))
+    xyz = np.r_[ground, wall, roof, clutter].astype(np.float32)
+    part = np.repeat(np.arange(4), sizes)
+    order = rng.permutation(n)
+    return xyz[order], part[order]
+
+
+def open3d_plane(xyz, seed):
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz.astype(np.float64)))
+    o3d.utility.random.seed(seed)
+    plane, inliers = pcd.segment_plane(distance_threshold=THRESHOLD, ransac_n=3,
+                                       num_iterations=1000)
+    plane = np.asarray(plane, dtype=np.float64)
+    return plane / np.linalg.norm(plane[:3]), len(inliers)
+
+
+def angle_deg(n1, n2):
+    cos = abs(np.dot(n1, n2)) / (np.linalg.norm(n1) * np.linalg.norm(n2))
+    return np.degrees(np.arccos(min(1.0, cos)))
+
+
+@pytest.mark.parametrize("seed, sample_size", [(0, None), (1, 8192)])
+def test_dominant_plane_matches_open3d(ti_arch, seed, sample_size):
+    xyz, _ = synthetic_scene(seed, 30_000)
+    fit = ransac.fit_plane(xyz, THRESHOLD, seed=seed, sample_size=sample_size)
+    o3d_plane, o3d_count = open3d_plane(xyz, seed)
+    assert angle_deg(fit.plane[:3], o3d_plane[:3]) < 1.0
+    assert abs(fit.n_inliers - o3d_count) <= 0.01 * o3d_count
+    assert angle_deg(fit.plane[:3], GROUND_NORMAL) < 1.0
+    assert fit.plane[2] >= 0 and np.isclose(np.linalg.norm(fit.plane[:3]), 1.0)
+    assert fit.hypotheses_scored == 1000
+    assert fit.inliers.dtype == bool and fit.inliers.shape == (len(xyz),)
+    assert fit.n_inliers == int(fit.inliers.sum())
+
+
+def test_inliers_are_points_within_threshold_of_plane(ti_arch):
+    xyz, _ = synthetic_scene(2, 20_000)
+    fit = ransac.fit_plane(xyz, THRESHOLD, seed=3, hypotheses=300)
+    dist = np.abs(xyz.astype(np.float64) @ fit.plane[:3] + fit.plane[3])
+    clear = np.abs(dist - THRESHOLD) > 1e-4  # float32 rounding decides the boundary itself
+    np.testing.assert_array_equal(fit.inliers[clear], (dist < THRESHOLD)[clear])
+
+
+def test_deterministic(ti_arch):
+    xyz, _ = synthetic_scene(4, 20_000)
+    first = ransac.fit_plane(xyz, THRESHOLD, seed=11, sample_size=4096)
+    for _ in range(2):
+        again = ransac.fit_plane(xyz, THRESHOLD, seed=11, sample_size=4096)
+        assert again.plane.tobytes() == first.plane.tobytes()
+        np.testing.assert_array_equal(again.inliers, first.inliers)
+        assert again.n_inliers == first.n_inliers
+    # ndarray input gives the very same fit
+    nd = ransac.fit_plane(as_ndarray(xyz), THRESHOLD, seed=11, sample_size=4096)
+    assert nd.plane.tobytes() == first.plane.tobytes()
+
+
+def test_active_mask_respected(ti_arch):
+    xyz, part = synthetic_scene(5, 30_000)
+    active = (part != 0).astype(np.uint8)  # without the ground the wall (15 %) dominates
+    fit = ransac.fit_plane(xyz, THRESHOLD, seed=5, active=active)
+    assert not fit.inliers[active == 0].any()
+    o3d_plane, o3d_count = open3d_plane(xyz[active == 1], 5)
+    assert angle_deg(fit.plane[:3], o3d_plane[:3]) < 1.0
+    assert abs(fit.n_inliers - o3d_count) <= 0.01 * o3d_count
+    assert angle_deg(fit.plane[:3], [0.0, 1.0, 0.0]) < 1.0
+    # too few active points: no plane
+    few = np.zeros(len(xyz), np.uint8)
+    few[:2] = 1
+    none = ransac.fit_plane(xyz, THRESHOLD, active=few)
+    assert none.n_inliers == 0 and not none.inliers.any()
+
+
+def test_plane_distances_match_numpy(ti_arch):
+    rng = np.random.default_rng(6)
+    xyz = rng.uniform(-50, 50, (5000, 3)).astype(np.float32)
+    plane = np.array([1.0, -2.0, 2.0, 3.0])  # normal of length 3: normalised by the wrapper
+    got = ransac.plane_distances(xyz, plane)
+    expected = np.abs(xyz.astype(np.float64) @ plane[:3] + plane[3]) / 3.0
+    assert got.dtype == np.float32
+    np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-4)
+    nd = ransac.plane_distances(as_ndarray(xyz), plane)
+    assert is_ndarray(nd)
+    np.testing.assert_array_equal(nd.to_numpy(), got)

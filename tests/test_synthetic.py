@@ -1,0 +1,142 @@
+"""The synthetic scene generator: exact counts, determinism, truth classes, geometry and colour
+properties the road and roof pipelines rely on. Pure numpy: no Taichi backend involved."""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from roadx_ti import synthetic
+from roadx_ti.synthetic import KINDS, generate
+
+CLASSES = {"uav-road": (1, 2, 3, 4, 5, 6, 7, 11, 18), "als-roof": (1, 2, 3, 4, 5, 6, 7, 11, 18)}
+
+
+@pytest.fixture(scope="module")
+def scenes():
+    return {"uav-road": generate("uav-road", 300_000, seed=3), "als-roof": generate("als-roof", 200_000, seed=3)}
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("n", [20_000, 54_321])
+def test_exact_count_types_and_origin(kind, n):
+    c = generate(kind, n, seed=1)
+    assert c.n == n
+    assert c.xyz.dtype == np.float32 and c.xyz.shape == (n, 3)
+    assert np.isfinite(c.xyz).all()
+    assert c.rgb.dtype == np.uint16 and c.rgb.shape == (n, 3)
+    assert c.color_depth == 16
+    assert (c.rgb % 257 == 0).all()                       # 8-bit colours scaled by 257
+    assert c.intensity.dtype == np.uint16 and c.intensity.shape == (n,)
+    assert c.classification.dtype == np.uint8 and c.classification.shape == (n,)
+    assert c.origin.dtype == np.float64
+    assert tuple(c.origin) == synthetic.ORIGINS[kind]
+    assert (c.origin == np.floor(c.origin)).all()
+    assert c.source == f"synthetic:{kind}:n={n}:seed=1"
+    # local coordinates start at the origin corner
+    assert c.xyz[:, :2].min() > -1.0
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_deterministic_from_seed(kind):
+    a, b, d = generate(kind, 30_000, seed=7), generate(kind, 30_000, seed=7), generate(kind, 30_000, seed=8)
+    for name in ("xyz", "rgb", "intensity", "classification"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert not np.array_equal(a.xyz, d.xyz)
+    assert not np.array_equal(a.classification, d.classification)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_every_class_present(kind, scenes):
+    c = scenes[kind]
+    cls, cnt = np.unique(c.classification, return_counts=True)
+    share = dict(zip(cls.tolist(), (cnt / c.n).tolist()))
+    assert set(share) == set(CLASSES[kind])
+    for k in CLASSES[kind]:
+        assert share[k] >= 0.0002, (k, share[k])
+    assert share[2] > 0.2 and share[6] > 0.05 and share[5] > 0.03
+    noise = share[7] + share[18]
+    if kind == "uav-road":
+        assert 0.18 <= share[11] <= 0.35, share[11]
+        assert 0.003 <= noise <= 0.008
+        assert share[3] > 0.001 and share[4] > 0.001
+    else:
+        assert 0.03 <= share[11] <= 0.3
+        assert noise < 0.003
+        assert share[3] > 0.002 and share[4] > 0.005
+
+
+def test_road_lies_below_the_kerb_top_beside_it(scenes):
+    """Ground points within 0.5 m of a road point (the sidewalk at the kerb) stand higher than it
+    by about the kerb height (10-15 cm, less the noise and the kerb face points)."""
+    c = scenes["uav-road"]
+    road = c.classification == 11
+    ground = c.classification == 2
+    tree = cKDTree(c.xyz[road, :2])
+    gz = c.xyz[ground]
+    dist, j = tree.query(gz[:, :2], distance_upper_bound=0.5)
+    near = np.isfinite(dist)
+    assert near.sum() > 500
+    dz = gz[near, 2] - c.xyz[road][j[near], 2]
+    assert 0.05 < np.median(dz) < 0.2, np.median(dz)
+    assert np.percentile(dz, 75) > 0.07
+
+
+def test_uav_colours_road_sidewalk_grass(scenes):
+    c = scenes["uav-road"]
+    rgb = c.rgb8()
+    lum = rgb @ np.array([0.299, 0.587, 0.114], dtype=np.float32)
+    road = c.classification == 11
+    assert 55 < np.median(lum[road]) < 110                 # dark grey asphalt (shadows included)
+    assert np.percentile(lum[road], 99) > 170               # white / yellow markings
+    # greens: trees are greener than red or blue
+    veg = c.classification == 5
+    assert np.median(rgb[veg, 1] - rgb[veg, 0]) > 15 and np.median(rgb[veg, 1] - rgb[veg, 2]) > 15
+    # uav intensity is the luminance
+    assert np.allclose(c.intensity / 257.0, lum, atol=1.5)
+
+
+def test_als_orthophoto_colour_and_intensity(scenes):
+    c = scenes["als-roof"]
+    rgb = c.rgb8()
+    cls = c.classification
+    inten = c.intensity.astype(np.float64)
+    assert np.median(inten[cls == 11]) < np.median(inten[cls == 5]) < np.median(inten[cls == 2])
+    # foliage colour varies point to point much more than a roof's
+    veg_sd = rgb[cls == 5].std(axis=0).mean()
+    assert veg_sd > 18
+    # few wall points: building points whose height is far below their 1 m cell's building top
+    b = c.xyz[cls == 6]
+    key = np.floor(b[:, 0]).astype(np.int64) * 100000 + np.floor(b[:, 1]).astype(np.int64)
+    order = np.argsort(key)
+    top = np.maximum.reduceat(b[order, 2], np.r_[0, np.nonzero(np.diff(key[order]))[0] + 1])
+    top_of = np.repeat(top, np.diff(np.r_[np.r_[0, np.nonzero(np.diff(key[order]))[0] + 1], len(b)]))
+    wall_share = np.mean(b[order, 2] < top_of - 1.5)
+    assert wall_share < 0.15, wall_share
+
+
+def test_als_extent_follows_density():
+    n = 400_000
+    c = generate("als-roof", n, seed=0)
+    side = math.sqrt(n / 15.0)                              # ~163 m at 15 pts/m2
+    assert abs(c.xyz[:, 0].max() - side) < 1.0 and abs(c.xyz[:, 1].max() - side) < 1.0
+
+
+def test_one_million_points_is_fast():
+    t0 = time.perf_counter()
+    c = generate("uav-road", 1_000_000, seed=0)
+    elapsed = time.perf_counter() - t0
+    assert c.n == 1_000_000
+    side = math.sqrt(1_000_000 / 200.0)                     # ~70.7 m at 200 pts/m2
+    assert abs(c.xyz[:, 0].max() - side) < 0.5 and abs(c.xyz[:, 1].max() - side) < 0.5
+    assert elapsed < 10.0, elapsed
+
+
+@pytest.mark.parametrize("kind, n", [("uav-road", 999), ("als-roof", 0), ("mars", 5000), ("uav-road", 2.5e4 + 0.5)])
+def test_bad_arguments(kind, n):
+    with pytest.raises(ValueError) as info:
+        generate(kind, n)
+    assert "\n" not in str(info.value)
