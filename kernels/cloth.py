@@ -42,6 +42,8 @@ BUFFER_PARTICLES = 2       # particles added before the bounding box on each axi
 STOP_DISPLACEMENT = 0.005  # early stop when the largest movable displacement is below this
 SLOPE_HEIGHT_STEP = 0.3    # the package's height_diff_threshold (slope smoothing)
 SLOPE_MIN_COMPONENT = 50   # slope smoothing only for movable components larger than this
+SERIAL_CELLS = 2**18        # on the CPU, smaller cloths run all iterations in one serial launch
+BBOX_CHUNK = 4096           # points per thread of the bounding-box reduction
 ITERATIONS_PER_CHECK = 8   # iterations launched between two host reads of the stop flag
 
 # the package's constraint coefficients per rigidness (index = rigidness, 0..14; 0.5 / 1 beyond)
@@ -60,41 +62,38 @@ _FILLED_BY_SEARCH = 2
 _KEY_MAX = 2**31 - 1
 
 
+# _NEIGHBOUR_DI/_DJ + 1 of the first ring, 2 bits per neighbour: the offsets are computed in the
+# kernels instead of tabled (no local arrays) or unrolled (compile time)
+_RING_DI_CODE = sum((_NEIGHBOUR_DI[m] + 1) << (2 * m) for m in range(8))
+_RING_DJ_CODE = sum((_NEIGHBOUR_DJ[m] + 1) << (2 * m) for m in range(8))
+
+
 @ti.func
 def _neighbour_offset(k: ti.i32) -> ti.math.ivec2:
-    # offsets of _NEIGHBOUR_DI/_NEIGHBOUR_DJ, computed instead of tabled (no local arrays)
-    ring = 1 + k // 8
-    m = k % 8
-    di = 0
-    dj = 0
-    if m == 0:
-        di, dj = -1, -1
-    elif m == 1:
-        di, dj = -1, 0
-    elif m == 2:
-        di, dj = -1, 1
-    elif m == 3:
-        di, dj = 0, -1
-    elif m == 4:
-        di, dj = 1, -1
-    elif m == 5:
-        di, dj = 1, 0
-    elif m == 6:
-        di, dj = 0, 1
-    else:
-        di, dj = 1, 1
-    return ti.math.ivec2(di * ring, dj * ring)
+    m = k & 7
+    ring = 1 + (k >> 3)
+    return ti.math.ivec2((((_RING_DI_CODE >> (2 * m)) & 3) - 1) * ring,
+                         (((_RING_DJ_CODE >> (2 * m)) & 3) - 1) * ring)
 
 
 # ---------------------------------------------------------------- bounding box and rasterisation
 
 @ti.kernel
-def _bbox(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), keys: ti.types.ndarray(dtype=ti.i32, ndim=1)):
-    # keys: min x, min y, min z, -max x, -max y, -max z as order keys (atomic_min only)
-    for p in range(xyz.shape[0]):
+def _bbox(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), keys: ti.types.ndarray(dtype=ti.i32, ndim=1),
+          chunk: ti.i32):
+    # keys: min x, min y, min z, -max x, -max y, -max z as order keys (atomic_min only); one
+    # atomic per chunk of points and axis, not per point (they would all hit the same six words)
+    n = xyz.shape[0]
+    for t in range((n + chunk - 1) // chunk):
+        lo = ti.Vector([xyz[t * chunk, 0], xyz[t * chunk, 1], xyz[t * chunk, 2]])
+        hi = lo
+        for p in range(t * chunk + 1, ti.min(n, (t + 1) * chunk)):
+            v = ti.Vector([xyz[p, 0], xyz[p, 1], xyz[p, 2]])
+            lo = ti.min(lo, v)
+            hi = ti.max(hi, v)
         for a in ti.static(range(3)):
-            ti.atomic_min(keys[a], f32_order_key(xyz[p, a]))
-            ti.atomic_min(keys[3 + a], f32_order_key(-xyz[p, a]))
+            ti.atomic_min(keys[a], f32_order_key(lo[a]))
+            ti.atomic_min(keys[3 + a], f32_order_key(-hi[a]))
 
 
 @ti.kernel
@@ -107,7 +106,10 @@ def _raster_distance(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), x0: ti.f32, y0
         row = ti.cast(dy / res + 0.5, ti.i32)
         ex = dx - col * res
         ey = dy - row * res
-        ti.atomic_min(cell_key[row * width + col], f32_order_key(ex * ex + ey * ey))
+        key = f32_order_key(ex * ex + ey * ey)
+        c = row * width + col
+        if key < cell_key[c]:     # most points are not the nearest: skip their atomic
+            ti.atomic_min(cell_key[c], key)
 
 
 @ti.kernel
@@ -227,112 +229,222 @@ def _fill_from_neighbours(cell_point: ti.types.ndarray(dtype=ti.i32, ndim=1),
 
 
 # ---------------------------------------------------------------- simulation
+# Every loop over the cloth runs over bands of BAND_ROWS rows, one thread per band
+# (block_dim 1: the CPU backend would otherwise give a few bands to one thread), and within a
+# band over its list of active particles in particle order. A particle is active while it or one
+# of its 16 neighbours is movable: only then does its constraint pass change anything. The lists
+# shrink as the cloth settles, so late iterations cost what is still moving, not the cloth size.
 
 @ti.kernel
 def _init_cloth(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
                 old_pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
                 movable: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                state: ti.types.ndarray(dtype=ti.i32, ndim=1), start: ti.f32):
+                band_list: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                band_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                state: ti.types.ndarray(dtype=ti.i32, ndim=1), start: ti.f32, width: ti.i32,
+                rows: ti.i32, band_rows: ti.i32):
     for c in pos:
         pos[c] = start
         old_pos[c] = start
         movable[c] = 1
+        band_list[c] = c        # band b lists its particles in its own cell range
+    for b in band_count:
+        band_count[b] = (ti.min(rows, (b + 1) * band_rows) - b * band_rows) * width
     for _ in range(1):
         state[0] = 0   # 1 once stopped
         state[1] = 0   # iterations run
-        state[2] = 0   # order key of this iteration's largest displacement
 
 
-@ti.kernel
-def _verlet_step(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
-                 old_pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
-                 movable: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                 state: ti.types.ndarray(dtype=ti.i32, ndim=1), acceleration: ti.f32):
-    for c in pos:
-        if state[0] == 0 and movable[c] == 1:
+@ti.func
+def _any_neighbour_movable(movable: ti.template(), i, j, width, rows):
+    interior = 2 <= i < width - 2 and 2 <= j < rows - 2
+    found = 0
+    for k in range(16):
+        o = _neighbour_offset(k)
+        if interior or (0 <= i + o[0] < width and 0 <= j + o[1] < rows):
+            found |= movable[(j + o[1]) * width + i + o[0]]
+    return found
+
+
+@ti.func
+def _refresh_band(b, movable: ti.template(), band_list: ti.template(), band_count: ti.template(),
+                  width, rows, band_rows):
+    # drop the particles that became inactive, in place and in order; movability only ever
+    # ends, so a particle inactive now stays inactive
+    begin = b * band_rows * width
+    kept = begin
+    for e in range(begin, begin + band_count[b]):
+        c = band_list[e]
+        active = movable[c]
+        if active == 0:
+            active = _any_neighbour_movable(movable, c % width, c // width, width, rows)
+        if active == 1:
+            band_list[kept] = c
+            kept += 1
+    band_count[b] = kept - begin
+
+
+@ti.func
+def _verlet_band(b, pos: ti.template(), old_pos: ti.template(), movable: ti.template(),
+                 band_list: ti.template(), band_count: ti.template(), width, band_rows,
+                 acceleration):
+    begin = b * band_rows * width
+    for e in range(begin, begin + band_count[b]):
+        c = band_list[e]
+        if movable[c] == 1:
             here = pos[c]
             pos[c] = here + (here - old_pos[c]) * (1.0 - DAMPING) + acceleration
             old_pos[c] = here
 
 
-@ti.kernel
-def _mark_active(movable: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                 active: ti.types.ndarray(dtype=ti.i32, ndim=1), width: ti.i32, rows: ti.i32):
-    # a constraint pass does something only where the particle or a neighbour is movable;
-    # movability only ever ends, so a flag computed now stays a safe superset later
-    for c in movable:
-        i = c % width
-        j = c // width
-        any_movable = movable[c]
-        for k in range(16):
-            o = _neighbour_offset(k)
-            ni = i + o[0]
-            nj = j + o[1]
-            if 0 <= ni < width and 0 <= nj < rows:
-                any_movable |= movable[nj * width + ni]
-        active[c] = any_movable
-
-
-@ti.kernel
-def _constraint_bands(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
-                      movable: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                      active: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                      state: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                      width: ti.i32, rows: ti.i32, band_rows: ti.i32, phase: ti.i32,
-                      single_move: ti.f32, double_move: ti.f32):
-    # the package's satisfyConstraintSelf, swept in particle order within bands of rows; bands of
-    # one phase (every other band) touch disjoint rows, so they run in parallel without races
-    bands = (rows + band_rows - 1) // band_rows
-    for t in range((bands - phase + 1) // 2):
-        if state[0] == 0:
-            b = phase + 2 * t
-            for j in range(b * band_rows, ti.min(rows, (b + 1) * band_rows)):
-                for i in range(width):
-                    c = j * width + i
-                    if active[c] == 1:
-                        for k in range(16):
-                            o = _neighbour_offset(k)
-                            ni = i + o[0]
-                            nj = j + o[1]
-                            if 0 <= ni < width and 0 <= nj < rows:
-                                q = nj * width + ni
-                                mp = movable[c]
-                                mq = movable[q]
-                                if mp == 1 or mq == 1:
-                                    d = pos[q] - pos[c]
-                                    if mp == 1 and mq == 1:
-                                        pos[c] += d * double_move
-                                        pos[q] -= d * double_move
-                                    elif mp == 1:
-                                        pos[c] += d * single_move
-                                    else:
-                                        pos[q] -= d * single_move
-
-
-@ti.kernel
-def _displacement_and_collision(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
-                                old_pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
-                                movable: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                                height: ti.types.ndarray(dtype=ti.f32, ndim=1),
-                                state: ti.types.ndarray(dtype=ti.i32, ndim=1)):
-    for _ in range(1):
-        state[2] = f32_order_key(0.0)
-    for c in pos:
-        if state[0] == 0 and movable[c] == 1:
-            ti.atomic_max(state[2], f32_order_key(ti.abs(old_pos[c] - pos[c])))
+@ti.func
+def _collide_band(b, pos: ti.template(), old_pos: ti.template(), movable: ti.template(),
+                  height: ti.template(), band_list: ti.template(), band_count: ti.template(),
+                  band_max: ti.template(), width, band_rows):
+    # largest displacement of a movable particle (before collision, as the package), then the
+    # collision: a particle below its collision height is put on it and becomes immovable
+    largest = 0.0
+    begin = b * band_rows * width
+    for e in range(begin, begin + band_count[b]):
+        c = band_list[e]
+        if movable[c] == 1:
+            largest = ti.max(largest, ti.abs(old_pos[c] - pos[c]))
             if pos[c] < height[c]:
                 pos[c] = height[c]
                 movable[c] = 0
+    band_max[b] = f32_order_key(largest)
+
+
+@ti.func
+def _stop_test(band_max: ti.template(), state: ti.template(), iterations):
+    largest_key = 0
+    for b in range(band_max.shape[0]):
+        largest_key = ti.max(largest_key, band_max[b])
+    state[1] += 1
+    largest = f32_from_order_key(largest_key)
+    if (largest != 0.0 and largest < STOP_DISPLACEMENT) or state[1] >= iterations:
+        state[0] = 1
+
+
+@ti.func
+def _constraint_pass(pos: ti.template(), movable: ti.template(), c, width, rows, single_move,
+                     double_move):
+    # the package's satisfyConstraintSelf: its 16 neighbours in its list order, each correction
+    # seeing the previous ones (pos[c] stays in a register: no neighbour is c itself)
+    i = c % width
+    j = c // width
+    interior = 2 <= i < width - 2 and 2 <= j < rows - 2
+    here = pos[c]
+    mp = movable[c]
+    for k in range(16):
+        o = _neighbour_offset(k)
+        if interior or (0 <= i + o[0] < width and 0 <= j + o[1] < rows):
+            q = c + o[1] * width + o[0]
+            mq = movable[q]
+            if mp == 1:
+                d = pos[q] - here
+                if mq == 1:
+                    here += d * double_move
+                    pos[q] -= d * double_move
+                else:
+                    here += d * single_move
+            elif mq == 1:
+                pos[q] -= (pos[q] - here) * single_move
+    pos[c] = here
+
+
+@ti.func
+def _sweep_band(b, pos: ti.template(), movable: ti.template(), band_list: ti.template(),
+                band_count: ti.template(), width, rows, band_rows, single_move, double_move):
+    begin = b * band_rows * width
+    for e in range(begin, begin + band_count[b]):
+        _constraint_pass(pos, movable, band_list[e], width, rows, single_move, double_move)
 
 
 @ti.kernel
-def _stop_test(state: ti.types.ndarray(dtype=ti.i32, ndim=1), iterations: ti.i32):
+def _refresh_active(movable: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                    band_list: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                    band_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                    width: ti.i32, rows: ti.i32, band_rows: ti.i32):
+    ti.loop_config(block_dim=1)
+    for b in band_count:
+        _refresh_band(b, movable, band_list, band_count, width, rows, band_rows)
+
+
+@ti.kernel
+def _iterate(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
+             old_pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
+             movable: ti.types.ndarray(dtype=ti.i32, ndim=1),
+             height: ti.types.ndarray(dtype=ti.f32, ndim=1),
+             band_list: ti.types.ndarray(dtype=ti.i32, ndim=1),
+             band_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
+             band_max: ti.types.ndarray(dtype=ti.i32, ndim=1),
+             state: ti.types.ndarray(dtype=ti.i32, ndim=1), width: ti.i32, rows: ti.i32,
+             band_rows: ti.i32, acceleration: ti.f32, single_move: ti.f32, double_move: ti.f32,
+             iterations: ti.i32):
+    # one iteration of the package's loop, bands in parallel: Verlet step, constraint sweep
+    # (every other band, they touch disjoint rows, then the others), largest displacement and
+    # collision, stop test; nothing once stopped
+    bands = band_count.shape[0]
+    ti.loop_config(block_dim=1)
+    for b in range(bands):
+        if state[0] == 0:
+            _verlet_band(b, pos, old_pos, movable, band_list, band_count, width, band_rows,
+                         acceleration)
+    ti.loop_config(block_dim=1)
+    for t in range((bands + 1) // 2):
+        if state[0] == 0:
+            _sweep_band(2 * t, pos, movable, band_list, band_count, width, rows, band_rows,
+                        single_move, double_move)
+    ti.loop_config(block_dim=1)
+    for t in range(bands // 2):
+        if state[0] == 0:
+            _sweep_band(2 * t + 1, pos, movable, band_list, band_count, width, rows, band_rows,
+                        single_move, double_move)
+    ti.loop_config(block_dim=1)
+    for b in range(bands):
+        if state[0] == 0:
+            _collide_band(b, pos, old_pos, movable, height, band_list, band_count, band_max,
+                          width, band_rows)
     for _ in range(1):
         if state[0] == 0:
-            state[1] += 1
-            largest = f32_from_order_key(state[2])
-            if (largest != 0.0 and largest < STOP_DISPLACEMENT) or state[1] >= iterations:
-                state[0] = 1
+            _stop_test(band_max, state, iterations)
+
+
+@ti.kernel
+def _simulate_serial(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
+                     old_pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
+                     movable: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                     height: ti.types.ndarray(dtype=ti.f32, ndim=1),
+                     band_list: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                     band_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                     band_max: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                     state: ti.types.ndarray(dtype=ti.i32, ndim=1), width: ti.i32, rows: ti.i32,
+                     band_rows: ti.i32, acceleration: ti.f32, single_move: ti.f32,
+                     double_move: ti.f32, iterations: ti.i32, refresh_every: ti.i32):
+    # the same steps in the same order as _refresh_active + _iterate, all iterations in one
+    # thread and one launch: for small cloths, where per-iteration launches and thread wake-ups
+    # would cost more than the work
+    bands = band_count.shape[0]
+    ti.loop_config(serialize=True)
+    for it in range(iterations):
+        if state[0] == 0:
+            if it > 0 and it % refresh_every == 0:
+                for b in range(bands):
+                    _refresh_band(b, movable, band_list, band_count, width, rows, band_rows)
+            for b in range(bands):
+                _verlet_band(b, pos, old_pos, movable, band_list, band_count, width, band_rows,
+                             acceleration)
+            for t in range(bands):
+                # even bands first, then odd ones, as the two parallel phases
+                half = (bands + 1) // 2
+                b = 2 * t if t < half else 2 * (t - half) + 1
+                _sweep_band(b, pos, movable, band_list, band_count, width, rows, band_rows,
+                            single_move, double_move)
+            for b in range(bands):
+                _collide_band(b, pos, old_pos, movable, height, band_list, band_count, band_max,
+                              width, band_rows)
+            _stop_test(band_max, state, iterations)
 
 
 # ---------------------------------------------------------------- slope smoothing
@@ -418,29 +530,56 @@ def _slope_snap(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
 
 # ---------------------------------------------------------------- classification
 
+@ti.func
+def _cloth_height_above(xyz: ti.template(), pos: ti.template(), p, x0, y0, res, width, rows):
+    # z minus the bilinear cloth height (the package's c2cdist)
+    u = (xyz[p, 0] - x0) / res
+    v = (xyz[p, 1] - y0) / res
+    col = ti.min(ti.max(ti.cast(ti.floor(u), ti.i32), 0), width - 2)
+    row = ti.min(ti.max(ti.cast(ti.floor(v), ti.i32), 0), rows - 2)
+    sx = u - col
+    sy = v - row
+    c = row * width + col
+    inverted = (pos[c] * (1.0 - sx) * (1.0 - sy) + pos[c + width] * (1.0 - sx) * sy
+                + pos[c + width + 1] * sx * sy + pos[c + 1] * sx * (1.0 - sy))
+    return xyz[p, 2] + inverted
+
+
 @ti.kernel
 def _height_above(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
                   pos: ti.types.ndarray(dtype=ti.f32, ndim=1), x0: ti.f32, y0: ti.f32,
                   res: ti.f32, width: ti.i32, rows: ti.i32,
                   out: ti.types.ndarray(dtype=ti.f32, ndim=1)):
     for p in range(xyz.shape[0]):
-        dx = xyz[p, 0] - x0
-        dy = xyz[p, 1] - y0
-        col = ti.min(ti.max(ti.cast(ti.floor(dx / res), ti.i32), 0), width - 2)
-        row = ti.min(ti.max(ti.cast(ti.floor(dy / res), ti.i32), 0), rows - 2)
-        sx = (dx - col * res) / res
-        sy = (dy - row * res) / res
-        c = row * width + col
-        inverted = (pos[c] * (1.0 - sx) * (1.0 - sy) + pos[c + width] * (1.0 - sx) * sy
-                    + pos[c + width + 1] * sx * sy + pos[c + 1] * sx * (1.0 - sy))
-        out[p] = xyz[p, 2] + inverted      # z minus the cloth height (-inverted)
+        out[p] = _cloth_height_above(xyz, pos, p, x0, y0, res, width, rows)
 
 
 @ti.kernel
-def _ground_mask(height_above: ti.types.ndarray(dtype=ti.f32, ndim=1), threshold: ti.f32,
+def _ground_mask(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                 pos: ti.types.ndarray(dtype=ti.f32, ndim=1), x0: ti.f32, y0: ti.f32,
+                 res: ti.f32, width: ti.i32, rows: ti.i32, threshold: ti.f32,
                  ground: ti.types.ndarray(dtype=ti.u8, ndim=1)):
-    for p in height_above:
-        ground[p] = ti.u8(1) if ti.abs(height_above[p]) < threshold else ti.u8(0)
+    for p in range(xyz.shape[0]):
+        above = _cloth_height_above(xyz, pos, p, x0, y0, res, width, rows)
+        ground[p] = ti.u8(1) if ti.abs(above) < threshold else ti.u8(0)
+
+
+def _host_memory_backend() -> bool:
+    """True when kernels run on the host CPU: numpy arrays are then passed to them in place."""
+    return ti.lang.impl.current_cfg().arch in (ti.x64, ti.arm64)
+
+
+def _kernel_points(xyz):
+    """The (n, 3) float32 points as a kernel argument: ndarrays as they are; numpy arrays in
+    place on the CPU backend (no copy of millions of points), else copied into an ndarray."""
+    if is_ndarray(xyz) or not _host_memory_backend():
+        return as_ndarray(xyz, np.float32)
+    return np.ascontiguousarray(xyz, dtype=np.float32)
+
+
+def _point_output(dtype, n):
+    """Per-point output array: numpy on the CPU backend (written in place), else an ndarray."""
+    return np.empty(n, dtype) if _host_memory_backend() else ndarray(dtype, (n,))
 
 
 # ---------------------------------------------------------------- public API
@@ -462,11 +601,11 @@ class ClothResult:
         """z minus the bilinear cloth height under each point (float32 (n,))."""
         rows, cols = self.cloth_z.shape
         pos = as_ndarray(-self.cloth_z.reshape(-1), np.float32)
-        points = as_ndarray(xyz, np.float32)
-        out = ndarray(np.float32, (length(points),))
+        points = _kernel_points(xyz)
+        out = _point_output(np.float32, length(points))
         if length(points):
             _height_above(points, pos, self.x0, self.y0, self.resolution, cols, rows, out)
-        return out.to_numpy()
+        return to_numpy(out)
 
 
 def _grid(keys: np.ndarray, resolution: float):
@@ -508,7 +647,7 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
         raise ValueError("time_step must be > 0")
     if int(iterations) < 1:
         raise ValueError("iterations must be >= 1")
-    points = as_ndarray(xyz, np.float32)
+    points = _kernel_points(xyz)
     n = length(points)
     if n == 0:
         return ClothResult(np.zeros(0, bool), np.zeros((0, 0), np.float32), 0.0, 0.0,
@@ -516,7 +655,7 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
     res = float(cloth_resolution)
 
     keys = _fill_i32((6,), _KEY_MAX)
-    _bbox(points, keys)
+    _bbox(points, keys, BBOX_CHUNK)
     lo, hi, cols, rows, x0, y0 = _grid(keys.to_numpy(), res)
     cells = cols * rows
     if cells >= 2**31 - 1:
@@ -547,26 +686,31 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
     pos = ndarray(np.float32, (cells,))
     old_pos = ndarray(np.float32, (cells,))
     movable = ndarray(np.int32, (cells,))
-    state = ndarray(np.int32, (3,))
-    _init_cloth(pos, old_pos, movable, state, float(-lo[2] + CLOTH_START_ABOVE))
+    state = ndarray(np.int32, (2,))
+    bands = (rows + BAND_ROWS - 1) // BAND_ROWS
+    band_list = ndarray(np.int32, (cells,))
+    band_count = ndarray(np.int32, (bands,))
+    band_max = ndarray(np.int32, (bands,))
+    _init_cloth(pos, old_pos, movable, band_list, band_count, state,
+                float(-lo[2] + CLOTH_START_ABOVE), cols, rows, BAND_ROWS)
     # the package pre-multiplies gravity by time_step^2 and multiplies by it again in the
     # Verlet step: the displacement per step is gravity * time_step^4
     acceleration = -GRAVITY * time_step ** 4
     k = int(rigidness)
     single = _SINGLE_MOVE[k] if k <= 14 else 1.0
     double = _DOUBLE_MOVE[k] if k <= 14 else 0.5
-    active = ndarray(np.int32, (cells,))
+    if cells <= SERIAL_CELLS and _host_memory_backend():
+        _simulate_serial(pos, old_pos, movable, height, band_list, band_count, band_max, state,
+                         cols, rows, BAND_ROWS, acceleration, single, double, int(iterations),
+                         ITERATIONS_PER_CHECK)
     done = 0
-    while done < iterations:
+    while done < iterations and state.to_numpy()[0] == 0:
         batch = min(ITERATIONS_PER_CHECK, iterations - done)
-        _mark_active(movable, active, cols, rows)
+        if done > 0:
+            _refresh_active(movable, band_list, band_count, cols, rows, BAND_ROWS)
         for _ in range(batch):
-            _verlet_step(pos, old_pos, movable, state, acceleration)
-            for phase in range(2):
-                _constraint_bands(pos, movable, active, state, cols, rows, BAND_ROWS, phase,
-                                  single, double)
-            _displacement_and_collision(pos, old_pos, movable, height, state)
-            _stop_test(state, int(iterations))
+            _iterate(pos, old_pos, movable, height, band_list, band_count, band_max, state, cols,
+                     rows, BAND_ROWS, acceleration, single, double, int(iterations))
         done += batch
         if state.to_numpy()[0] == 1:
             break
@@ -584,10 +728,8 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
                           SLOPE_HEIGHT_STEP, SLOPE_MIN_COMPONENT) > 0:
             pass
 
-    above = ndarray(np.float32, (n,))
-    _height_above(points, pos, x0, y0, res, cols, rows, above)
-    ground = ndarray(np.uint8, (n,))
-    _ground_mask(above, float(class_threshold), ground)
+    ground = _point_output(np.uint8, n)
+    _ground_mask(points, pos, x0, y0, res, cols, rows, float(class_threshold), ground)
     cloth_z = -pos.to_numpy().reshape(rows, cols)
-    return ClothResult(ground.to_numpy().astype(bool), cloth_z.astype(np.float32), x0, y0, res,
+    return ClothResult(to_numpy(ground).view(bool), cloth_z.astype(np.float32), x0, y0, res,
                        iterations_run)

@@ -7,8 +7,9 @@ compression pass then points every node straight at its root. Parents only ever 
 only ever point at a node of the same component, so whatever the thread timing, the root of a
 component is its smallest point index: the labels are deterministic. A round is one hooking pass
 over all edges plus one compression pass; rounds repeat until a hooking pass changes nothing
-(an integer flag). Hooking completes unions within a pass, so a round count is typically 2 and
-does not grow with the graph diameter (a 100 000-node chain takes the same 2 rounds).
+(an integer flag). Hooking retries until its union is done, so a pass joins whole chains and
+the round count does not grow with the graph diameter (a 100 000-node chain takes 2-3 rounds,
+like a random graph).
 
 Region merging (PCL RegionGrowingRGB's second step) computes the region adjacency graph and mean
 colours on the host with numpy (``np.unique`` and ``np.bincount``: deterministic, float64 sums),

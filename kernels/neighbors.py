@@ -32,8 +32,6 @@ _BINS = 32
 _BIN_BITS = 5
 _INF_KEY = 0x7F800000          # float bits of +inf: larger than any finite squared distance
 
-# scan modes
-_HEAP, _COUNT, _HIST, _COLLECT, _EMIT = 0, 1, 2, 3, 4
 
 
 @ti.func
@@ -53,13 +51,192 @@ def _safe_radius(u: ti.math.vec3, c: ti.math.ivec3, ring: ti.i32, cell_size: ti.
     return ti.max((ti.cast(ring, ti.f32) + b - margin) * cell_size, 0.0)
 
 
+@ti.func
+def _cube_offset(t: ti.i32, span: ti.i32, ring: ti.i32) -> ti.math.ivec3:
+    return ti.math.ivec3(t % span - ring, (t // span) % span - ring, t // (span * span) - ring)
+
+
+@ti.func
+def _box_distance(u: ti.math.vec3, c: ti.math.ivec3, d: ti.math.ivec3, cell_size: ti.f32) -> ti.f32:
+    """Lower bound of the distance from the query to any point of cell c + d."""
+    frac = u - ti.cast(c, ti.f32)
+    gap = ti.math.vec3(0.0)
+    for a in ti.static(range(3)):
+        if d[a] > 0:
+            gap[a] = ti.cast(d[a], ti.f32) - frac[a]
+        elif d[a] < 0:
+            gap[a] = frac[a] - 1.0 - ti.cast(d[a], ti.f32)
+    margin = (ti.abs(u).max() + 2.0) * 1e-6
+    return ti.max(gap - margin, 0.0).norm() * cell_size
+
+
+@ti.func
+def _cell_range(target: ti.math.ivec3, brute: ti.i32, n: ti.i32, bstart: ti.template(),
+                mask: ti.i32) -> ti.math.ivec2:
+    """Range of sorted positions to scan for a cell (its hash bucket), or all points when brute."""
+    rg = ti.math.ivec2(0, n)
+    if brute == 0:
+        h = cell_hash(target, mask)
+        rg = ti.math.ivec2(bstart[h], bstart[h + 1])
+    return rg
+
+
+@ti.func
+def _is_member(j: ti.i32, target: ti.math.ivec3, brute: ti.i32, qi: ti.i32, order: ti.template(),
+               scell: ti.template()) -> ti.i32:
+    """Point j is a candidate: not the query, and in the looked-up cell (buckets hold colliding cells)."""
+    same = ti.cast(scell[j, 0] == target[0], ti.i32) & ti.cast(scell[j, 1] == target[1], ti.i32) \
+        & ti.cast(scell[j, 2] == target[2], ti.i32)
+    return ti.cast(order[j] != qi, ti.i32) & (same | brute)
+
+
+@ti.func
+def _distance(j: ti.i32, q: ti.math.vec3, sxyz: ti.template()) -> ti.f32:
+    p = ti.math.vec3(sxyz[j, 0], sxyz[j, 1], sxyz[j, 2]) - q
+    return ti.sqrt(p.dot(p))
+
+
 @ti.kernel
-def _knn_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
+def _knn_heap(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
               scell: ti.types.ndarray(dtype=ti.i32, ndim=2), bstart: ti.types.ndarray(dtype=ti.i32, ndim=1),
               mask: ti.i32, ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32, inv_cell: ti.f32,
               k: ti.i32, brute_cells: ti.i32, self_slots: ti.i32,
               out_idx: ti.types.ndarray(dtype=ti.i32, ndim=2), out_dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
               out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.template()):
+    """k <= SMALL_K: one max-heap per query in registers; rings are added shell by shell, and a
+    cell is skipped when its box is farther than the current k-th candidate."""
+    n = sxyz.shape[0]
+    for s in range(n):
+        qi = order[s]
+        q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
+        c = ti.math.ivec3(scell[s, 0], scell[s, 1], scell[s, 2])
+        u = (q - ti.math.vec3(ox, oy, oz)) * inv_cell
+        heap_key = ti.Vector([0] * SMALL_K, ti.i32)
+        heap_idx = ti.Vector([0] * SMALL_K, ti.i32)
+        size = 0
+        ring = 1
+        inner = -1              # rings <= inner were scanned already
+        brute = 0
+        done = 0
+        while done == 0:
+            sr = _safe_radius(u, c, ring, cell_size)
+            span = 2 * ring + 1
+            n_cells = span * span * span
+            centre = n_cells // 2
+            if brute:
+                n_cells = 1
+            for t in range(n_cells):
+                d = _cube_offset((t + centre) % n_cells, span, ring)   # own cell first
+                target = c + d
+                rg = ti.math.ivec2(0, n)
+                if brute == 0:
+                    rg = ti.math.ivec2(0, 0)
+                    if ti.abs(d).max() > inner:
+                        visit = 1
+                        if size == k:
+                            if _box_distance(u, c, d, cell_size) > ti.bit_cast(heap_key[0], ti.f32):
+                                visit = 0
+                        if visit:
+                            rg = _cell_range(target, 0, n, bstart, mask)
+                for j in range(rg[0], rg[1]):
+                    member = 0
+                    if brute:
+                        member = ti.cast(order[j] != qi, ti.i32) & ti.cast(
+                            ti.max(ti.abs(scell[j, 0] - c[0]), ti.abs(scell[j, 1] - c[1]),
+                                   ti.abs(scell[j, 2] - c[2])) > inner, ti.i32)
+                    else:
+                        member = _is_member(j, target, 0, qi, order, scell)
+                    if member:
+                        key = ti.bit_cast(_distance(j, q, sxyz), ti.i32)
+                        idx = order[j]
+                        if size < k:
+                            pos = size      # sift up
+                            size += 1
+                            while pos > 0:
+                                parent = (pos - 1) // 2
+                                if _pair_less(heap_key[parent], heap_idx[parent], key, idx):
+                                    heap_key[pos] = heap_key[parent]
+                                    heap_idx[pos] = heap_idx[parent]
+                                    pos = parent
+                                else:
+                                    break
+                            heap_key[pos] = key
+                            heap_idx[pos] = idx
+                        elif _pair_less(key, idx, heap_key[0], heap_idx[0]):
+                            pos = 0         # replace the root, sift down
+                            while True:
+                                child = 2 * pos + 1
+                                if child >= k:
+                                    break
+                                sibling = ti.min(child + 1, k - 1)   # and/or do not short-circuit
+                                if child + 1 < k:
+                                    if _pair_less(heap_key[child], heap_idx[child], heap_key[sibling], heap_idx[sibling]):
+                                        child = sibling
+                                if _pair_less(key, idx, heap_key[child], heap_idx[child]):
+                                    heap_key[pos] = heap_key[child]
+                                    heap_idx[pos] = heap_idx[child]
+                                    pos = child
+                                else:
+                                    break
+                            heap_key[pos] = key
+                            heap_idx[pos] = idx
+            if brute or (size == k and ti.bit_cast(heap_key[0], ti.f32) < sr):
+                done = 1
+            else:
+                inner = ring
+                if (2 * ring + 3) * (2 * ring + 3) * (2 * ring + 3) > brute_cells:
+                    brute = 1
+                else:
+                    ring += 1
+        # heap sort in place: ascending (distance, index)
+        end = size - 1
+        while end > 0:
+            tk = heap_key[0]
+            tx = heap_idx[0]
+            heap_key[0] = heap_key[end]
+            heap_idx[0] = heap_idx[end]
+            heap_key[end] = tk
+            heap_idx[end] = tx
+            pos = 0
+            while True:
+                child = 2 * pos + 1
+                if child >= end:
+                    break
+                sibling = ti.min(child + 1, end - 1)
+                if child + 1 < end:
+                    if _pair_less(heap_key[child], heap_idx[child], heap_key[sibling], heap_idx[sibling]):
+                        child = sibling
+                if _pair_less(heap_key[pos], heap_idx[pos], heap_key[child], heap_idx[child]):
+                    tk = heap_key[pos]
+                    tx = heap_idx[pos]
+                    heap_key[pos] = heap_key[child]
+                    heap_idx[pos] = heap_idx[child]
+                    heap_key[child] = tk
+                    heap_idx[child] = tx
+                    pos = child
+                else:
+                    break
+            end -= 1
+        dist_sum = 0.0
+        for r in range(k):
+            dist = ti.bit_cast(heap_key[r], ti.f32)
+            if ti.static(emit_rows):
+                out_idx[qi, r] = heap_idx[r]
+                out_dist[qi, r] = dist
+            else:
+                dist_sum += dist
+        if ti.static(not emit_rows):
+            out_mean[qi] = dist_sum / ti.cast(k + self_slots, ti.f32)
+
+
+@ti.kernel
+def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                scell: ti.types.ndarray(dtype=ti.i32, ndim=2), bstart: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                mask: ti.i32, ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32, inv_cell: ti.f32,
+                k: ti.i32, brute_cells: ti.i32, self_slots: ti.i32,
+                out_idx: ti.types.ndarray(dtype=ti.i32, ndim=2), out_dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.template()):
+    """k > SMALL_K: selection of the k-th (distance, index) by counting, then one emit pass."""
     n = sxyz.shape[0]
     for s in range(n):
         qi = order[s]
@@ -67,262 +244,184 @@ def _knn_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndar
         c = ti.math.ivec3(scell[s, 0], scell[s, 1], scell[s, 2])
         u = (q - ti.math.vec3(ox, oy, oz)) * inv_cell
 
-        heap_key = ti.Vector([0] * SMALL_K, ti.i32)
-        heap_idx = ti.Vector([0] * SMALL_K, ti.i32)
-        hist = ti.Vector([0] * _BINS, ti.i32)
-        size = 0
-        mode = _HEAP
-        if k > SMALL_K:
-            mode = _COUNT
+        # 1. the ring whose safe radius holds at least k candidates (or all points)
         ring = 1
-        inner = -1              # rings <= inner were scanned already (heap mode grows by shells)
         brute = 0
-        count = 0
-        # radix state: candidates with value in [lo, lo + (BINS << shift)) are binned
-        phase = 0               # 0: on the squared-distance bits, 1: on the index among ties
-        lo = 0
-        shift = 0
-        below = 0
-        rank = k                # 1-based rank of the wanted candidate in (key, index) order
-        t_key = 0
-        t_idx = 0
-        emitted = 0
-        dist_sum = 0.0
-        done = 0
-        while done == 0:
-            count = 0
-            for b in ti.static(range(_BINS)):
-                hist[b] = 0
+        sr = 0.0
+        searching = 1
+        while searching:
             sr = _safe_radius(u, c, ring, cell_size)
             span = 2 * ring + 1
             n_cells = span * span * span
             if brute:
                 n_cells = 1
+            count = 0
             for t in range(n_cells):
-                a = 0
-                e = n
-                d = ti.math.ivec3(t % span - ring, (t // span) % span - ring, t // (span * span) - ring)
-                target = c + d
-                if brute == 0:
-                    a = 0
-                    e = 0
-                    if ti.abs(d).max() > inner:
-                        h = cell_hash(target, mask)
-                        a = bstart[h]
-                        e = bstart[h + 1]
-                for j in range(a, e):
-                    cj = ti.math.ivec3(scell[j, 0], scell[j, 1], scell[j, 2])
-                    ok = order[j] != qi
-                    if brute:
-                        ok = ok and (ti.abs(cj - c).max() > inner or mode != _HEAP)
-                    else:
-                        ok = ok and cj[0] == target[0] and cj[1] == target[1] and cj[2] == target[2]
-                    if ok:
-                        p = ti.math.vec3(sxyz[j, 0], sxyz[j, 1], sxyz[j, 2]) - q
-                        dist = ti.sqrt(p.dot(p))
-                        key = ti.bit_cast(dist, ti.i32)
-                        idx = order[j]
-                        if mode == _HEAP:
-                            if size < k:
-                                # sift up into the max-heap
-                                pos = size
-                                size += 1
-                                while pos > 0:
-                                    parent = (pos - 1) // 2
-                                    if _pair_less(heap_key[parent], heap_idx[parent], key, idx):
-                                        heap_key[pos] = heap_key[parent]
-                                        heap_idx[pos] = heap_idx[parent]
-                                        pos = parent
-                                    else:
-                                        break
-                                heap_key[pos] = key
-                                heap_idx[pos] = idx
-                            elif _pair_less(key, idx, heap_key[0], heap_idx[0]):
-                                # replace the root and sift down
-                                pos = 0
-                                while True:
-                                    child = 2 * pos + 1
-                                    if child >= k:
-                                        break
-                                    if child + 1 < k and _pair_less(heap_key[child], heap_idx[child],
-                                                                    heap_key[child + 1], heap_idx[child + 1]):
-                                        child += 1
-                                    if _pair_less(key, idx, heap_key[child], heap_idx[child]):
-                                        heap_key[pos] = heap_key[child]
-                                        heap_idx[pos] = heap_idx[child]
-                                        pos = child
-                                    else:
-                                        break
-                                heap_key[pos] = key
-                                heap_idx[pos] = idx
-                        elif mode == _COUNT:
-                            if dist < sr or brute:
-                                count += 1
-                        elif mode == _HIST or mode == _COLLECT:
-                            v = key
-                            valid = 1
-                            if phase == 1:
-                                v = idx
-                                valid = ti.cast(key == t_key, ti.i32)
-                            if valid and v >= lo:
-                                bin_ = (v - lo) >> shift
-                                if mode == _HIST:
-                                    if bin_ < _BINS:
-                                        hist[bin_] += 1
-                                elif bin_ == 0 and size < SMALL_K:
-                                    heap_key[size] = key
-                                    heap_idx[size] = idx
-                                    size += 1
-                        else:  # _EMIT
-                            if _pair_less(key, idx, t_key, t_idx) or (key == t_key and idx == t_idx):
-                                if ti.static(emit_rows):
-                                    out_idx[qi, emitted] = idx
-                                    out_dist[qi, emitted] = dist
-                                else:
-                                    dist_sum += dist
-                                emitted += 1
-
-            # ---- what the pass found decides the next one
-            if mode == _HEAP:
-                if brute or (size == k and ti.bit_cast(heap_key[0], ti.f32) < sr):
-                    # heap sort in place: ascending (key, index)
-                    end = size - 1
-                    while end > 0:
-                        tk = heap_key[0]
-                        tx = heap_idx[0]
-                        heap_key[0] = heap_key[end]
-                        heap_idx[0] = heap_idx[end]
-                        heap_key[end] = tk
-                        heap_idx[end] = tx
-                        pos = 0
-                        while True:
-                            child = 2 * pos + 1
-                            if child >= end:
-                                break
-                            if child + 1 < end and _pair_less(heap_key[child], heap_idx[child],
-                                                              heap_key[child + 1], heap_idx[child + 1]):
-                                child += 1
-                            if _pair_less(heap_key[pos], heap_idx[pos], heap_key[child], heap_idx[child]):
-                                tk = heap_key[pos]
-                                tx = heap_idx[pos]
-                                heap_key[pos] = heap_key[child]
-                                heap_idx[pos] = heap_idx[child]
-                                heap_key[child] = tk
-                                heap_idx[child] = tx
-                                pos = child
-                            else:
-                                break
-                        end -= 1
-                    for r in range(k):
-                        dist = ti.bit_cast(heap_key[r], ti.f32)
-                        if ti.static(emit_rows):
-                            out_idx[qi, r] = heap_idx[r]
-                            out_dist[qi, r] = dist
-                        else:
-                            dist_sum += dist
-                    done = 1
-                else:
-                    inner = ring
-                    if (2 * ring + 3) * (2 * ring + 3) * (2 * ring + 3) > brute_cells:
-                        brute = 1
-                    else:
-                        ring += 1
-            elif mode == _COUNT:
-                if count >= k or brute:
-                    mode = _HIST
-                    hi = _INF_KEY
-                    if brute == 0:
-                        hi = ti.bit_cast(sr, ti.i32)
-                    while (hi >> shift) >= _BINS:
-                        shift += 1
-                elif (2 * ring + 3) * (2 * ring + 3) * (2 * ring + 3) > brute_cells:
-                    brute = 1
-                else:
-                    ring += 1
-            elif mode == _HIST:
-                cum = below
-                chosen = _BINS - 1
-                for b in range(_BINS):
-                    if cum + hist[b] >= rank:
-                        chosen = b
-                        break
-                    cum += hist[b]
-                below = cum
-                lo += chosen << shift
-                in_bin = hist[chosen]
-                if in_bin <= SMALL_K:
-                    mode = _COLLECT
-                    size = 0
-                elif shift == 0:
-                    if phase == 0:
-                        # in_bin candidates share the k-th squared distance: select by index
-                        t_key = lo
-                        phase = 1
-                        rank -= below
-                        below = 0
-                        lo = 0
-                        while (n >> shift) >= _BINS:
-                            shift += 1
-                    else:
-                        done = 1   # unreachable: indices are unique
-                else:
-                    shift = ti.max(shift - _BIN_BITS, 0)
-            elif mode == _COLLECT:
-                # insertion sort of the few candidates of the bin, then take the wanted rank
-                for a in range(1, size):
-                    tk = heap_key[a]
-                    tx = heap_idx[a]
-                    b = a
-                    while b > 0 and _pair_less(tk, tx, heap_key[b - 1], heap_idx[b - 1]):
-                        heap_key[b] = heap_key[b - 1]
-                        heap_idx[b] = heap_idx[b - 1]
-                        b -= 1
-                    heap_key[b] = tk
-                    heap_idx[b] = tx
-                r = rank - below - 1
-                t_key = heap_key[r]
-                t_idx = heap_idx[r]
-                mode = _EMIT
+                target = c + _cube_offset(t, span, ring)
+                rg = _cell_range(target, brute, n, bstart, mask)
+                for j in range(rg[0], rg[1]):
+                    if _is_member(j, target, brute, qi, order, scell):
+                        if _distance(j, q, sxyz) < sr:
+                            count += 1
+            if count >= k or brute:
+                searching = 0
+            elif (2 * ring + 3) * (2 * ring + 3) * (2 * ring + 3) > brute_cells:
+                brute = 1
             else:
-                done = 1
-                if ti.static(emit_rows):
-                    # heap sort of the emitted row in place (global memory)
-                    m = emitted
-                    start = m // 2 - 1
-                    end = m - 1
-                    while end > 0:
-                        pos = 0
-                        if start >= 0:
-                            pos = start
-                            start -= 1
-                        else:
-                            tk = out_dist[qi, 0]
-                            tx = out_idx[qi, 0]
-                            out_dist[qi, 0] = out_dist[qi, end]
-                            out_idx[qi, 0] = out_idx[qi, end]
-                            out_dist[qi, end] = tk
-                            out_idx[qi, end] = tx
-                            end -= 1
-                        while True:
-                            child = 2 * pos + 1
-                            if child > end:
-                                break
-                            if child + 1 <= end and _pair_less(
-                                    ti.bit_cast(out_dist[qi, child], ti.i32), out_idx[qi, child],
-                                    ti.bit_cast(out_dist[qi, child + 1], ti.i32), out_idx[qi, child + 1]):
-                                child += 1
-                            if _pair_less(ti.bit_cast(out_dist[qi, pos], ti.i32), out_idx[qi, pos],
-                                          ti.bit_cast(out_dist[qi, child], ti.i32), out_idx[qi, child]):
-                                tk = out_dist[qi, pos]
-                                tx = out_idx[qi, pos]
-                                out_dist[qi, pos] = out_dist[qi, child]
-                                out_idx[qi, pos] = out_idx[qi, child]
-                                out_dist[qi, child] = tk
-                                out_idx[qi, child] = tx
-                                pos = child
+                ring += 1
+        span = 2 * ring + 1
+        n_cells = span * span * span
+        if brute:
+            n_cells = 1
+        hi = _INF_KEY
+        if brute == 0:
+            hi = ti.bit_cast(sr, ti.i32)
+
+        # 2. radix narrowing: 32-bin histograms of the distance bits (phase 0), then of the
+        #    point index among candidates at exactly the k-th distance (phase 1)
+        phase = 0
+        lo = 0
+        shift = 0
+        while (hi >> shift) >= _BINS:
+            shift += 1
+        below = 0
+        rank = k
+        t_key = 0
+        narrowing = 1
+        hist = ti.Vector([0] * _BINS, ti.i32)
+        while narrowing:
+            for bz in ti.static(range(_BINS)):
+                hist[bz] = 0
+            for t in range(n_cells):
+                target = c + _cube_offset(t, span, ring)
+                rg = _cell_range(target, brute, n, bstart, mask)
+                for j in range(rg[0], rg[1]):
+                    if _is_member(j, target, brute, qi, order, scell):
+                        v = ti.bit_cast(_distance(j, q, sxyz), ti.i32)
+                        if phase == 1:
+                            v = -1
+                            if ti.bit_cast(_distance(j, q, sxyz), ti.i32) == t_key:
+                                v = order[j]
+                        if v >= lo:
+                            hb = (v - lo) >> shift
+                            if hb < _BINS:
+                                hist[hb] += 1
+            cum = below
+            chosen = _BINS - 1
+            found = 0
+            for hb in range(_BINS):
+                if found == 0:
+                    if cum + hist[hb] >= rank:
+                        chosen = hb
+                        found = 1
+                    else:
+                        cum += hist[hb]
+            below = cum
+            lo += chosen << shift
+            in_bin = hist[chosen]
+            if in_bin <= SMALL_K:
+                narrowing = 0
+            elif shift == 0:
+                # in_bin candidates share the k-th distance: select among them by index
+                t_key = lo
+                phase = 1
+                rank -= below
+                below = 0
+                lo = 0
+                while (n >> shift) >= _BINS:
+                    shift += 1
+            else:
+                shift = ti.max(shift - _BIN_BITS, 0)
+
+        # 3. the few candidates of the chosen bin; the wanted one by counting
+        buf_key = ti.Vector([0] * SMALL_K, ti.i32)
+        buf_idx = ti.Vector([0] * SMALL_K, ti.i32)
+        size = 0
+        for t in range(n_cells):
+            target = c + _cube_offset(t, span, ring)
+            rg = _cell_range(target, brute, n, bstart, mask)
+            for j in range(rg[0], rg[1]):
+                if _is_member(j, target, brute, qi, order, scell):
+                    key = ti.bit_cast(_distance(j, q, sxyz), ti.i32)
+                    v = key
+                    if phase == 1:
+                        v = -1
+                        if key == t_key:
+                            v = order[j]
+                    if v >= lo:
+                        if (v - lo) >> shift == 0:
+                            if size < SMALL_K:
+                                buf_key[size] = key
+                                buf_idx[size] = order[j]
+                                size += 1
+        wanted = rank - below - 1
+        t_idx = 0
+        for cand in range(size):
+            smaller = 0
+            for other in range(size):
+                smaller += _pair_less(buf_key[other], buf_idx[other], buf_key[cand], buf_idx[cand])
+            if smaller == wanted:
+                t_key = buf_key[cand]
+                t_idx = buf_idx[cand]
+
+        # 4. emit every candidate up to (t_key, t_idx)
+        emitted = 0
+        dist_sum = 0.0
+        for t in range(n_cells):
+            target = c + _cube_offset(t, span, ring)
+            rg = _cell_range(target, brute, n, bstart, mask)
+            for j in range(rg[0], rg[1]):
+                if _is_member(j, target, brute, qi, order, scell):
+                    dist = _distance(j, q, sxyz)
+                    key = ti.bit_cast(dist, ti.i32)
+                    idx = order[j]
+                    if _pair_less(key, idx, t_key, t_idx) | (ti.cast(key == t_key, ti.i32) & ti.cast(idx == t_idx, ti.i32)):
+                        if emitted < k:
+                            if ti.static(emit_rows):
+                                out_idx[qi, emitted] = idx
+                                out_dist[qi, emitted] = dist
                             else:
-                                break
-        if ti.static(not emit_rows):
+                                dist_sum += dist
+                        emitted += 1
+        if ti.static(emit_rows):
+            # heap sort of the row in place (global memory): ascending (distance, index)
+            m = ti.min(emitted, k)
+            start = m // 2 - 1
+            end = m - 1
+            while end > 0:
+                pos = 0
+                if start >= 0:
+                    pos = start
+                    start -= 1
+                else:
+                    tk = out_dist[qi, 0]
+                    tx = out_idx[qi, 0]
+                    out_dist[qi, 0] = out_dist[qi, end]
+                    out_idx[qi, 0] = out_idx[qi, end]
+                    out_dist[qi, end] = tk
+                    out_idx[qi, end] = tx
+                    end -= 1
+                while True:
+                    child = 2 * pos + 1
+                    if child > end:
+                        break
+                    sibling = ti.min(child + 1, end)
+                    if child + 1 <= end:
+                        if _pair_less(ti.bit_cast(out_dist[qi, child], ti.i32), out_idx[qi, child],
+                                      ti.bit_cast(out_dist[qi, sibling], ti.i32), out_idx[qi, sibling]):
+                            child = sibling
+                    if _pair_less(ti.bit_cast(out_dist[qi, pos], ti.i32), out_idx[qi, pos],
+                                  ti.bit_cast(out_dist[qi, child], ti.i32), out_idx[qi, child]):
+                        tk = out_dist[qi, pos]
+                        tx = out_idx[qi, pos]
+                        out_dist[qi, pos] = out_dist[qi, child]
+                        out_idx[qi, pos] = out_idx[qi, child]
+                        out_dist[qi, child] = tk
+                        out_idx[qi, child] = tx
+                        pos = child
+                    else:
+                        break
+        else:
             out_mean[qi] = dist_sum / ti.cast(k + self_slots, ti.f32)
 
 
@@ -351,7 +450,8 @@ def _brute_cells(n: int) -> int:
 
 def _run_scan(grid: Grid, k: int, out_idx, out_dist, out_mean, emit_rows: bool, self_slots: int):
     ox, oy, oz = grid.origin
-    _knn_scan(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, grid.table_mask,
+    kernel = _knn_heap if k <= SMALL_K else _knn_select
+    kernel(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, grid.table_mask,
               ox, oy, oz, grid.cell_size, grid.inv_cell, k, _brute_cells(grid.n), self_slots,
               out_idx, out_dist, out_mean, emit_rows)
 
@@ -437,11 +537,13 @@ def _radius_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.n
                 tk = out_dist[a]
                 tx = out_idx[a]
                 b = a
-                while b > base and _pair_less(ti.bit_cast(tk, ti.i32), tx,
-                                              ti.bit_cast(out_dist[b - 1], ti.i32), out_idx[b - 1]):
-                    out_dist[b] = out_dist[b - 1]
-                    out_idx[b] = out_idx[b - 1]
-                    b -= 1
+                while b > base:
+                    if _pair_less(ti.bit_cast(tk, ti.i32), tx, ti.bit_cast(out_dist[b - 1], ti.i32), out_idx[b - 1]):
+                        out_dist[b] = out_dist[b - 1]
+                        out_idx[b] = out_idx[b - 1]
+                        b -= 1
+                    else:
+                        break
                 out_dist[b] = tk
                 out_idx[b] = tx
         else:

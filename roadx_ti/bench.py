@@ -43,8 +43,9 @@ import traceback
 from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-CASES_DIR = REPO_ROOT / "benchmarks"
-DEFAULT_OUT = CASES_DIR / "out"
+BENCH_DIR = REPO_ROOT / "benchmarks"        # the cases, RESULTS.md and throughput.png
+DEFAULT_OUT = BENCH_DIR / "out"
+CASES_ENV = "ROADX_BENCH_CASES"              # another folder of cases (tests of the harness)
 # Order of the table and of a run: kernel stages in pipeline order, then the pipelines.
 STAGES = ("voxel_hash", "knn", "uniform_downsample", "voxel_downsample", "sor", "normals", "ransac",
           "grid_min", "csf", "label_propagation", "road_pipeline", "roof_pipeline")
@@ -106,7 +107,7 @@ def main(args) -> int:
     """Run the `bench` subcommand from parsed ``args``; returns the exit code."""
     if args.render:
         runs = [json.loads(Path(p).read_text()) for p in args.render]
-        results = args.results or CASES_DIR / "RESULTS.md"
+        results = args.results or BENCH_DIR / "RESULTS.md"
         plot = args.plot or results.with_name("throughput.png")
         write_results(runs, results, plot)
         print(f"wrote {results} and {plot}", file=sys.stderr)
@@ -120,7 +121,7 @@ def main(args) -> int:
     out_dir.mkdir(parents=True, exist_ok=True)
     json_path = out_dir / f"bench-{run['meta']['run_id']}.json"
     json_path.write_text(json.dumps(run, indent=1))
-    results = args.results or (out_dir / "RESULTS.md" if args.quick else CASES_DIR / "RESULTS.md")
+    results = args.results or (out_dir / "RESULTS.md" if args.quick else BENCH_DIR / "RESULTS.md")
     plot = args.plot or results.with_name("throughput.png")
     write_results([run], results, plot)
     bad = [r for r in run["rows"] if r["status"] == "error"]
@@ -168,7 +169,7 @@ def _command_line(args, sizes, stages, backends) -> str:
 # -------------------------------------------------------------------------------- the cases
 def load_case(stage: str):
     """The case module benchmarks/<stage>.py, loaded by path (benchmarks/ is not a package)."""
-    path = CASES_DIR / f"{stage}.py"
+    path = Path(os.environ.get(CASES_ENV) or BENCH_DIR) / f"{stage}.py"
     spec = importlib.util.spec_from_file_location(f"roadx_bench_case_{stage}", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -177,12 +178,15 @@ def load_case(stage: str):
 
 def _jobs(stage: str, points: int, impls_filter, *, anchors: bool, quick: bool = False) -> list[dict]:
     """(stage, variant, impl) jobs of one case at one size: the roadx_ti impl, or the anchors.
-    A variant marked ``"quick": False`` (seconds even on tiny scenes) is left out of --quick."""
+    A variant marked ``"quick": False`` (seconds even on tiny scenes) is left out of --quick, and so
+    are the pipelines above the smallest quick size."""
     case = load_case(stage)
     jobs = []
     for variant in getattr(case, "VARIANTS", [{"name": "", "params": {}}]):
         if quick and not variant.get("quick", True):
             continue
+        if quick and stage.endswith("_pipeline") and points > QUICK_SIZES[0]:
+            continue   # --quick: the pipelines at the smallest size only
         names = variant.get("impls") or list(case.IMPLS)
         for impl in names:
             if (impl == "roadx_ti") == anchors:
@@ -203,6 +207,7 @@ def execute(plan: dict) -> dict:
     tmp = Path(tempfile.mkdtemp(prefix="roadx_bench_"))
     cache_dir = tmp / "ticache" if plan["cache"] == "fresh" else None
     rows: list[dict] = []
+    plan["workers"] = []
     try:
         for size_index, points in enumerate(plan["sizes"]):
             for backend in plan["backends"]:
@@ -232,7 +237,7 @@ def execute(plan: dict) -> dict:
     meta = {"run_id": run_id, "command": plan["command"], "machine": machine_facts(plan["backends"]),
             "sizes": plan["sizes"], "backends": plan["backends"], "stages": plan["stages"],
             "quick": plan["quick"], "cache": plan["cache"], "budget_s": plan["budget"],
-            "seconds": round(time.perf_counter() - t_start, 1)}
+            "seconds": round(time.perf_counter() - t_start, 1), "workers": plan["workers"]}
     for r in rows:
         r["run_id"] = run_id
     return {"meta": meta, "rows": rows}
@@ -263,6 +268,7 @@ def _run_worker(plan, backend, jobs, tmp: Path, cache_dir, *, first_call_only=Fa
         label = f"{backend} {_fmt_points(remaining[0]['points'])}{' (cached first call)' if first_call_only else ''}"
         print(f"roadx_ti bench: {label}: {len(remaining)} case(s)", file=sys.stderr, flush=True)
         failure = None
+        t0 = time.perf_counter()
         try:
             proc = subprocess.run(cmd, env=env, cwd=str(REPO_ROOT), timeout=plan["timeout"],
                                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
@@ -271,6 +277,9 @@ def _run_worker(plan, backend, jobs, tmp: Path, cache_dir, *, first_call_only=Fa
                 failure = f"worker exited with status {proc.returncode}: {' | '.join(tail)}"[:400]
         except subprocess.TimeoutExpired:
             failure = f"worker timed out after {plan['timeout']} s"
+        plan["workers"].append({"backend": backend, "points": remaining[0]["points"], "cases": len(remaining),
+                                "first_call_only": first_call_only,
+                                "seconds": round(time.perf_counter() - t0, 1)})
         got, started = _read_rows(Path(spec["rows_path"]))
         for r in got:
             r.update(extra or {})
@@ -373,8 +382,10 @@ def worker_main(spec_path: str) -> int:
             row |= {"status": "missing", "error": f"{type(exc).__name__}: {exc}"[:300]}
         except Exception as exc:  # reported, never dropped
             tb = traceback.extract_tb(exc.__traceback__)[-1]
-            row |= {"status": "error",
-                    "error": f"{type(exc).__name__}: {exc} ({Path(tb.filename).name}:{tb.lineno})"[:400]}
+            text = " ".join(str(exc).split())   # Taichi's compile errors span many lines
+            if len(text) > 320:
+                text = "..." + text[-320:]
+            row |= {"status": "error", "error": f"{type(exc).__name__}: {text} ({Path(tb.filename).name}:{tb.lineno})"}
         row["threads"] = threads if job["impl"] == "roadx_ti" else _anchor_threads(job["impl"])
         row["os_threads"] = _proc_status_kb("Threads")
         emit(row)
@@ -799,11 +810,17 @@ def _detail_sections(rows):
                 continue
             ratio = ", ".join(f"{k}: {_fmt(v)}x" for k, v in sorted(r["ratio"].items()))
             lines.append(f"| {_fmt_points(r['points'])} | {r['backend']} | {r['impl']} | {_fmt(r['mpts_per_s'])} "
-                         f"| {_fmt(r['median_s'])} | {_fmt(r['first_call_s'])} | {_fmt(r.get('first_call_cached_s'))} "
+                         f"| {_fmt(r['median_s'])} | {_first_call(r)} | {_fmt(r.get('first_call_cached_s'))} "
                          f"| {_fmt(r['peak_rss_mb'])} | {_fmt(r['bytes_per_point'])} | {_fmt(r['threads'])} "
                          f"| {ratio or '-'} |")
         lines.append("")
     return lines
+
+
+def _first_call(row) -> str:
+    state = row.get("offline_cache")
+    text = _fmt(row["first_call_s"])
+    return f"{text} ({state} cache)" if row["impl"] == "roadx_ti" and state in ("cold", "warm") else text
 
 
 def _problem_section(rows):

@@ -145,8 +145,7 @@ def cmd_run(args) -> int:
         if not Path(p).is_file():
             raise config.ConfigError(f"config error: input.paths = {p!r}: no such file")
     out = Path(cfg.output.path)
-    _make_parent(out)
-    io.check_output_path(out, cfg.input.paths)
+    _prepare_output(out, cfg.input.paths)
     stage_specs = cfg.stage_list() or pipelines.default_stage_specs(cfg.pipeline)
 
     t0 = time.perf_counter()
@@ -213,6 +212,17 @@ def cmd_run(args) -> int:
     return EXIT_OK
 
 
+def _prepare_output(out: Path, inputs) -> None:
+    """Refuse a bad output before any work: an unknown format, an input, an impossible folder."""
+    from roadx_ti import io
+
+    if out.suffix.lower() not in io.EXTENSIONS:
+        raise UsageError(f"{out}: unknown output format {out.suffix or '(no extension)'!r}; "
+                         f"use one of {' '.join(io.EXTENSIONS)}")
+    _make_parent(out)
+    io.check_output_path(out, inputs)
+
+
 def _make_parent(out: Path) -> None:
     """Create the output's folder, as users of PDAL and friends expect; failures are data errors."""
     try:
@@ -276,8 +286,7 @@ def cmd_synth(args) -> int:
     from roadx_ti import io, synthetic
 
     out = Path(args.output)
-    _make_parent(out)
-    io.check_output_path(out, [])
+    _prepare_output(out, [])
     try:
         cloud = synthetic.generate(args.kind, args.points, args.seed)
     except ValueError as exc:

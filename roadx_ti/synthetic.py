@@ -279,6 +279,7 @@ class _Scene:
         xyz, rgb, inten, cls = self._finish(xyz, rgb, inten, cls)
         if n_out:
             xyz, rgb, inten, cls = self._add_outliers(n_out, xyz, rgb, inten, cls)
+        inten = self._final_intensity(rgb, inten)
         order = self._file_order(xyz)
         inten16 = np.clip(np.rint(inten[order]), 0, 65535).astype(np.uint16)
         return xyz[order], rgb[order], inten16, cls[order].astype(np.uint8)
@@ -293,6 +294,9 @@ class _Scene:
 
     def _finish(self, xyz, rgb, inten, cls):
         return xyz, rgb, inten, cls
+
+    def _final_intensity(self, rgb, inten):
+        return inten
 
     def _add_outliers(self, n_out, xyz, rgb, inten, cls):
         rng = self.rng_noise
@@ -871,8 +875,12 @@ class _UavRoadScene(_Scene):
         rgb += rng.standard_normal((n, 3), dtype=F32) * F32(5.0)
         rgb += (rng.standard_normal(n, dtype=F32) * F32(4.0))[:, None]
         np.clip(rgb, 0, 255, out=rgb)
-        inten = (F32(0.299) * rgb[:, 0] + F32(0.587) * rgb[:, 1] + F32(0.114) * rgb[:, 2]) * F32(257.0)
         return xyz, rgb, inten, cls
+
+    def _final_intensity(self, rgb, inten):
+        # photogrammetry has no sensor intensity: carry the colour luminance (x 257)
+        rgb = np.rint(rgb)
+        return (F32(0.299) * rgb[:, 0] + F32(0.587) * rgb[:, 1] + F32(0.114) * rgb[:, 2]) * F32(257.0)
 
 
 _TILE_ROOFS = np.array([[158, 78, 58], [128, 86, 66], [176, 102, 72], [110, 60, 50]], dtype=F32)
@@ -1169,7 +1177,7 @@ class _AlsRoofScene(_Scene):
                 inten = np.where(street, F32(650), F32(2500)) * (F32(1) + F32(0.25) * rng.standard_normal(n, dtype=F32))
                 cls = np.where(street, CLASS_ROAD, CLASS_GROUND).astype(np.uint8)
                 self._emit(x, y, z, np.zeros((n, 3), F32), cls, inten)
-        self._emit_boxes(self.buildings, rho, wall_factor=0.12, cls=CLASS_BUILDING, windows=False)
+        self._emit_boxes(self.buildings, rho, wall_factor=0.06, cls=CLASS_BUILDING, windows=False)
         self._emit_boxes(self.cars, rho, wall_factor=0.2, cls=CLASS_OTHER, windows=False)
         self._emit_crowns(self.trees, rho, CLASS_HIGH_VEG, colour_sigma=0.0, trunk=False, area_factor=1.6,
                           top_bias=0.6, thickness=0.9)

@@ -108,14 +108,13 @@ def test_als_orthophoto_colour_and_intensity(scenes):
     # foliage colour varies point to point much more than a roof's
     veg_sd = rgb[cls == 5].std(axis=0).mean()
     assert veg_sd > 18
-    # few wall points: building points whose height is far below their 1 m cell's building top
-    b = c.xyz[cls == 6]
-    key = np.floor(b[:, 0]).astype(np.int64) * 100000 + np.floor(b[:, 1]).astype(np.int64)
-    order = np.argsort(key)
-    top = np.maximum.reduceat(b[order, 2], np.r_[0, np.nonzero(np.diff(key[order]))[0] + 1])
-    top_of = np.repeat(top, np.diff(np.r_[np.r_[0, np.nonzero(np.diff(key[order]))[0] + 1], len(b)]))
-    wall_share = np.mean(b[order, 2] < top_of - 1.5)
-    assert wall_share < 0.15, wall_share
+    # few wall points: building points whose local plane (PCA over 12 neighbours) is vertical
+    b = c.xyz[cls == 6].astype(np.float64)
+    _, j = cKDTree(b).query(b, k=12)
+    nb = b[j] - b[j].mean(axis=1, keepdims=True)
+    _, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", nb, nb))
+    wall_share = np.mean(np.abs(vec[:, 2, 0]) < 0.3)
+    assert wall_share < 0.2, wall_share
 
 
 def test_als_extent_follows_density():

@@ -83,7 +83,11 @@ def atomic_output(path) -> Iterator[Path]:
     name is hidden, in the destination's folder (same file system, so the rename is atomic), and
     ends with the destination's suffix so writers that choose a format by extension still work."""
     dest = Path(path)
-    fd, name = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.stem}.", suffix=f".partial{dest.suffix}")
+    try:
+        fd, name = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.stem}.", suffix=f".partial{dest.suffix}")
+    except OSError as exc:  # e.g. /proc, a read-only mount: the user's path, not a program error
+        raise fail(dest, f"cannot create a file in the output folder {dest.parent} "
+                         f"({exc.strerror or type(exc).__name__})") from None
     os.close(fd)
     tmp = Path(name)
     try:
@@ -91,8 +95,10 @@ def atomic_output(path) -> Iterator[Path]:
         _fsync_path(tmp)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the usual permissions
         os.replace(tmp, dest)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
+        if isinstance(exc, OSError):  # disk full, I/O error: one line, the output left as it was
+            raise fail(dest, f"writing failed ({exc.strerror or exc}); the output was not changed") from exc
         raise
     _fsync_path(dest.parent, directory=True)

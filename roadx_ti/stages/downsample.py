@@ -35,7 +35,8 @@ class UniformDownsample(Stage):
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         n = cloud.n
-        target = self.options.target_points or int(round(n * self.options.ratio))
+        # a ratio > 0 keeps at least one point: rounding must not leave a tiny cloud unprocessed
+        target = self.options.target_points or max(int(round(n * self.options.ratio)), min(n, 1))
         keep = np.zeros(n, bool)
         keep[uniform_indices(n, min(target, n))] = True
         return StageResult(keep=keep, mode="subsample", info={"target_points": int(keep.sum())})

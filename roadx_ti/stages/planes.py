@@ -7,8 +7,8 @@ plane is classified: tilted more than ``max_tilt_deg`` from horizontal -> Z clas
 removed; near-horizontal with the median height of its inliers above the local ground reference
 greater than ``dh_max`` -> XY class (roofs, terraces), removed; otherwise ground-level, kept. Its
 points are marked matched either way, so it is not found again.
-The ground reference is the lowest point of a coarse grid cell (``ground_cell``, larger than a
-building, so a roof cell still sees the ground beside it).
+The ground reference under a point is the lowest point of the 3 x 3 coarse grid cells
+(``ground_cell``) around its cell, so a roof point still sees the ground beside its building.
 """
 from __future__ import annotations
 
@@ -31,7 +31,22 @@ class RansacOptions(StageOptions):
                                 "from vertical is Z class (walls) and removed (degrees)")
     dh_max: float = Field(1.0, gt=0, description="a near-horizontal plane whose inliers lie higher than this "
                           "above the ground reference is XY class and removed (m)")
-    ground_cell: float = Field(30.0, gt=0, description="cell edge of the ground reference grid (m)")
+    ground_cell: float = Field(10.0, gt=0, description="cell edge of the ground reference grid (m); the "
+                               "reference is the minimum over the 3 x 3 cells around a point's cell")
+
+
+def _height_above_local_minimum(xyz, cell_size):
+    """z minus the lowest z of the 3 x 3 cells around each point's cell (per-cell minima from the
+    grid-min kernel; the 3 x 3 minimum runs on the small coarse grid on the host)."""
+    from scipy.ndimage import minimum_filter
+
+    from roadx_ti.kernels.grid_min import cell_minimum
+
+    cell, cell_lowest, n_cols = cell_minimum(xyz, cell_size)
+    n_rows = len(cell_lowest) // n_cols
+    cell_min_z = np.where(cell_lowest >= 0, xyz[np.maximum(cell_lowest, 0), 2], np.inf).astype(np.float32)
+    local_min = minimum_filter(cell_min_z.reshape(n_rows, n_cols), size=3, mode="nearest").ravel()
+    return xyz[:, 2] - local_min[cell]
 
 
 class RansacPlanes(Stage):
@@ -44,8 +59,7 @@ class RansacPlanes(Stage):
 
         o = self.options
         xyz = cloud.xyz
-        cell, cell_lowest, _ = cell_minimum(xyz, o.ground_cell)
-        height_above_ground = xyz[:, 2] - xyz[cell_lowest[cell], 2]
+        height_above_ground = _height_above_local_minimum(xyz, o.ground_cell)
         unmatched = np.ones(cloud.n, bool)
         keep = np.ones(cloud.n, bool)
         planes = []

@@ -1,0 +1,845 @@
+"""Scale-out: multi-file catalogs, a fixed grid of core tiles with buffers, executors (in-process or
+dask.distributed) and the merge back into one output.
+
+    summary = run_catalog(cfg, ["tiles/"], "out/all.laz", workers=4)          # local Dask cluster
+    summary = run_catalog(cfg, paths, "out/", output_mode="per-file", scheduler="tcp://host:8786")
+
+How a run goes:
+1. ``catalog``: the input files (a folder gives its point-cloud files sorted by name) with their
+   header bounds; input order = catalog order, each file's points in file order.
+2. ``plan_tiles``: core tiles on a grid anchored at multiples of the tile size; a tile exists
+   where some file's header box meets its core. Each tile reads core + ``buffer`` on every side,
+   only from the files whose box meets that window (io.read(path, bounds=window, origin=shared)).
+3. ``run_tile`` (on any executor) runs the whole pipeline on the window and keeps the labels of its
+   core points only. Cores are half-open [x0, x1) x [y0, y1), so every point has exactly one core.
+   A point's core is found with ``np.searchsorted`` on the grid edges everywhere (workers and merge),
+   so all parts of the run agree on it bit for bit.
+4. Segments cut by a core border are reconciled: a tile returns, per neighbour, the segment ids of
+   its buffer points that are the neighbour's core points, and the ids of its core points inside
+   the neighbour's window; both lists hold the same points in the same (catalog, file) order, so
+   pairing them links (tile, segment) nodes, and a union-find gives one global id per component.
+5. The merge streams every input file again in chunks and takes each point's labels from its core
+   tile in order (the k-th point of file f in core t is the k-th core point of f that t returned).
+   Nothing is written until every tile has succeeded; outputs are written atomically.
+"""
+from __future__ import annotations
+
+import copy
+import logging
+import math
+import os
+import socket
+import sys
+import time
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from roadx_ti.cloud import Cloud
+
+log_default = logging.getLogger("roadx_ti")
+
+TARGET_TILE_POINTS = 2_000_000   # default core tile: about this many points
+TILE_SIZE_STEP = 10.0            # default tile sizes are rounded up to a multiple of this (m)
+MIN_BUFFER = 5.0                 # m: even point-local stages need their neighbours
+MERGE_CHUNK_POINTS = 1_000_000
+RETRIES = 2                      # dask retries of a failed tile before the run fails
+MODES = ("merged", "per-file")
+
+
+class TileError(RuntimeError):
+    """A tile failed (after its retries); the message names it by its bounds. Nothing was written."""
+
+
+# ------------------------------------------------------------------------------------- catalog
+
+@dataclass(frozen=True)
+class CatalogFile:
+    path: str
+    bounds: tuple          # header (xmin, ymin, xmax, ymax), max inclusive
+    count: int
+
+
+def catalog(inputs) -> list[CatalogFile]:
+    """The input files in order: each given file, or a folder's point-cloud files sorted by name.
+    Bounds and counts come from the headers (io.read_headers)."""
+    from roadx_ti import io
+
+    if isinstance(inputs, (str, os.PathLike)):
+        inputs = [inputs]
+    paths = []
+    for given in inputs:
+        p = Path(given)
+        if p.is_dir():
+            found = sorted(q for q in p.iterdir() if q.is_file() and q.suffix.lower() in io.EXTENSIONS)
+            if not found:
+                raise io.InputError(f"{p}: folder holds no point-cloud files ({' '.join(io.EXTENSIONS)})")
+            paths.extend(str(q) for q in found)
+        else:
+            paths.append(str(p))
+    if not paths:
+        raise io.InputError("no input files given")
+    if len(set(os.path.realpath(p) for p in paths)) != len(paths):
+        raise io.InputError(f"the same input file is named twice in {paths}")
+    return [CatalogFile(path, tuple(float(b) for b in bounds), int(count))
+            for path, bounds, count in io.read_headers(paths)]
+
+
+# -------------------------------------------------------------------------------------- plan
+
+STAGE_REACH_DOC = """Spatial reach of each stage (m), the default buffer is the largest:
+cloth_ground / cloth_smooth: 15 x cloth_resolution (the cloth's stiffness carries its shape that far);
+grid_slope: 4 x step; ransac_planes: ground_cell; color_growing: 20 x max_edge_distance;
+roof_seeds: 4 x r_max; roof_filter: 2 x sqrt(min_roof_area) (a roof must be whole to be measured);
+others: MIN_BUFFER."""
+
+
+def stage_reach(name: str, options) -> float:
+    """How far (m) a stage's decision about a point depends on other points (see STAGE_REACH_DOC)."""
+    get = lambda key, default: float(getattr(options, key, default) or default)  # noqa: E731
+    reach = {
+        "cloth_ground": lambda: 15.0 * get("cloth_resolution", 1.0),
+        "cloth_smooth": lambda: 15.0 * get("cloth_resolution", 2.0),
+        "grid_slope": lambda: 4.0 * get("step", 0.5),
+        "ransac_planes": lambda: get("ground_cell", 30.0),
+        "color_growing": lambda: 20.0 * get("max_edge_distance", 0.5),
+        "roof_seeds": lambda: 4.0 * get("r_max", 1.5),
+        "roof_filter": lambda: 2.0 * math.sqrt(get("min_roof_area", 10.0)),
+    }.get(name)
+    return max(MIN_BUFFER, reach() if reach else MIN_BUFFER)
+
+
+def default_buffer(stage_specs) -> tuple[float, dict]:
+    """(buffer in m, {stage: reach}) from the stages' spatial reach, rounded up to a metre."""
+    reaches = {name: round(stage_reach(name, opts), 3) for name, opts in stage_specs}
+    return float(math.ceil(max(reaches.values(), default=MIN_BUFFER))), reaches
+
+
+def default_tile_size(files: list[CatalogFile], target_points: int = TARGET_TILE_POINTS) -> float:
+    """Edge (m) of a square core holding about ``target_points`` at the catalog's mean density."""
+    area = sum(max(f.bounds[2] - f.bounds[0], 1.0) * max(f.bounds[3] - f.bounds[1], 1.0) for f in files)
+    density = max(sum(f.count for f in files) / area, 1e-6)
+    return TILE_SIZE_STEP * math.ceil(math.sqrt(target_points / density) / TILE_SIZE_STEP)
+
+
+@dataclass(frozen=True)
+class Tile:
+    index: int
+    col: int
+    row: int
+    core: tuple            # (x0, y0, x1, y1), half-open
+    window: tuple          # core + buffer, half-open
+    files: tuple           # catalog indices of the files whose header box meets the window
+    neighbours: tuple      # tile indices whose cores meet this window
+
+
+@dataclass
+class TilePlan:
+    x_edges: np.ndarray    # float64 grid lines; core column c is [x_edges[c], x_edges[c+1])
+    y_edges: np.ndarray
+    tile_size: float       # inf for an untiled run (one core over everything)
+    buffer: float
+    read_origin: np.ndarray  # (3,) float64 local origin shared by every read
+    tiles: list[Tile]
+    tile_of_cell: np.ndarray  # (rows, cols) int32: tile index, -1 where no file reaches
+
+    def cells(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(col, row) of world points; -1 or len(edges)-1 outside the grid."""
+        return (np.searchsorted(self.x_edges, x, side="right") - 1,
+                np.searchsorted(self.y_edges, y, side="right") - 1)
+
+    def tile_index(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Index of the tile whose core holds each point, -1 where none does."""
+        col, row = self.cells(x, y)
+        inside = (col >= 0) & (col < len(self.x_edges) - 1) & (row >= 0) & (row < len(self.y_edges) - 1)
+        out = np.full(len(col), -1, np.int64)
+        out[inside] = self.tile_of_cell[row[inside], col[inside]]
+        return out
+
+    def border_distance(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Distance (m) of each point to the nearest border of its core tile (inf untiled)."""
+        return _border_distance(self.x_edges, self.y_edges, x, y)
+
+    def describe(self) -> dict:
+        return {"tile_size": self.tile_size if np.isfinite(self.tile_size) else None,
+                "buffer": self.buffer, "grid_origin": [float(self.x_edges[0]), float(self.y_edges[0])],
+                "columns": len(self.x_edges) - 1, "rows": len(self.y_edges) - 1, "tiles": len(self.tiles),
+                "x_edges": self.x_edges.tolist(), "y_edges": self.y_edges.tolist(),
+                "read_origin": self.read_origin.tolist()}
+
+
+def plan_tiles(files: list[CatalogFile], tile_size: float, buffer: float) -> TilePlan:
+    """Core tiles of ``tile_size`` on a grid anchored at multiples of the tile size, each read with
+    ``buffer`` on every side. ``tile_size`` = inf (or <= 0) gives one core over the whole catalog
+    and no buffer: the untiled run, through the same code path."""
+    xmin = min(f.bounds[0] for f in files)
+    ymin = min(f.bounds[1] for f in files)
+    xmax = max(f.bounds[2] for f in files)
+    ymax = max(f.bounds[3] for f in files)
+    read_origin = np.array([math.floor(xmin), math.floor(ymin), 0.0])
+    if tile_size is None or not np.isfinite(tile_size) or tile_size <= 0:
+        tile_size, buffer = math.inf, 0.0
+        # header max is inclusive; +1 m keeps the last points inside the half-open core
+        x_edges = np.array([math.floor(xmin), math.floor(xmax) + 1.0])
+        y_edges = np.array([math.floor(ymin), math.floor(ymax) + 1.0])
+    else:
+        tile_size = float(tile_size)
+        x0 = math.floor(xmin / tile_size) * tile_size
+        y0 = math.floor(ymin / tile_size) * tile_size
+        cols = int(math.floor((xmax - x0) / tile_size)) + 1
+        rows = int(math.floor((ymax - y0) / tile_size)) + 1
+        x_edges = x0 + tile_size * np.arange(cols + 1, dtype=np.float64)
+        y_edges = y0 + tile_size * np.arange(rows + 1, dtype=np.float64)
+    if buffer < 0:
+        raise ValueError(f"tiling buffer must be >= 0 m, got {buffer}")
+    cols, rows = len(x_edges) - 1, len(y_edges) - 1
+    cell_x = lambda v: int(np.clip(np.searchsorted(x_edges, v, side="right") - 1, 0, cols - 1))  # noqa: E731
+    cell_y = lambda v: int(np.clip(np.searchsorted(y_edges, v, side="right") - 1, 0, rows - 1))  # noqa: E731
+    used = np.zeros((rows, cols), bool)
+    for f in files:
+        if f.count:
+            used[cell_y(f.bounds[1]):cell_y(f.bounds[3]) + 1, cell_x(f.bounds[0]):cell_x(f.bounds[2]) + 1] = True
+    tile_of_cell = np.full((rows, cols), -1, np.int32)
+    cells = [(r, c) for r in range(rows) for c in range(cols) if used[r, c]]
+    for i, (r, c) in enumerate(cells):
+        tile_of_cell[r, c] = i
+    tiles = []
+    for i, (r, c) in enumerate(cells):
+        core = (float(x_edges[c]), float(y_edges[r]), float(x_edges[c + 1]), float(y_edges[r + 1]))
+        window = (core[0] - buffer, core[1] - buffer, core[2] + buffer, core[3] + buffer)
+        meets = [k for k, f in enumerate(files) if f.count and f.bounds[2] >= window[0]
+                 and f.bounds[0] < window[2] and f.bounds[3] >= window[1] and f.bounds[1] < window[3]]
+        c_lo = max(0, int(np.searchsorted(x_edges, window[0], side="right")) - 1)
+        c_hi = min(cols - 1, int(np.searchsorted(x_edges, window[2], side="left")) - 1)
+        r_lo = max(0, int(np.searchsorted(y_edges, window[1], side="right")) - 1)
+        r_hi = min(rows - 1, int(np.searchsorted(y_edges, window[3], side="left")) - 1)
+        near = tuple(int(tile_of_cell[rr, cc]) for rr in range(r_lo, r_hi + 1) for cc in range(c_lo, c_hi + 1)
+                     if tile_of_cell[rr, cc] >= 0 and (rr, cc) != (r, c))
+        tiles.append(Tile(i, c, r, core, window, tuple(meets), near))
+    return TilePlan(x_edges, y_edges, float(tile_size), float(buffer), read_origin, tiles, tile_of_cell)
+
+
+# --------------------------------------------------------------------------------- one tile
+
+@dataclass
+class TileJob:
+    """Everything a worker needs (picklable; files are read by the worker from their paths)."""
+    tile: Tile
+    paths: dict            # catalog index -> path, for the tile's files
+    plan_x_edges: np.ndarray
+    plan_y_edges: np.ndarray
+    tile_of_cell: np.ndarray
+    windows: dict          # neighbour tile index -> its window
+    read_origin: np.ndarray
+    stage_specs: list
+    backend: str
+    threads: int | None
+    seed: int
+
+
+@dataclass
+class FilePart:
+    """Labels of one file's core points in one tile, in file order."""
+    classification: np.ndarray
+    decided_by: np.ndarray
+    segment_id: np.ndarray    # local to the tile
+    processed: np.ndarray
+
+
+@dataclass
+class TileResult:
+    index: int
+    parts: dict               # catalog index -> FilePart
+    segments: int             # local segment ids are 0..segments-1
+    buffer_in: dict = field(default_factory=dict)   # neighbour -> seg ids of my buffer points in its core
+    core_in: dict = field(default_factory=dict)     # neighbour -> seg ids of my core points in its window
+    points_read: int = 0
+    points_core: int = 0
+    read_seconds: float = 0.0
+    pipeline_seconds: float = 0.0
+    seconds: float = 0.0
+    worker: str = ""
+    stages: list = field(default_factory=list)
+
+
+def _world_xy(cloud: Cloud) -> tuple[np.ndarray, np.ndarray]:
+    """float64 x, y exactly as io.read's bounds test saw them."""
+    if cloud.las is not None:
+        return np.asarray(cloud.las.x, np.float64), np.asarray(cloud.las.y, np.float64)
+    return (cloud.xyz[:, 0].astype(np.float64) + cloud.origin[0],
+            cloud.xyz[:, 1].astype(np.float64) + cloud.origin[1])
+
+
+def _concat(clouds: list[Cloud], origin: np.ndarray) -> Cloud:
+    """One processing cloud from several files' windows (same origin); colour only when all have it."""
+    if len(clouds) == 1:
+        return clouds[0]
+    rgb = None
+    if all(c.rgb is not None for c in clouds):
+        deep = max(c.color_depth for c in clouds)
+        rgb = np.concatenate([c.rgb.astype(np.uint16) * np.uint16(257 if deep == 16 and c.color_depth == 8 else 1)
+                              for c in clouds])
+    pick = lambda name: (np.concatenate([getattr(c, name) for c in clouds])  # noqa: E731
+                         if all(getattr(c, name) is not None for c in clouds) else None)
+    return Cloud(xyz=np.concatenate([c.xyz for c in clouds]), origin=origin, rgb=rgb,
+                 color_depth=max(c.color_depth for c in clouds) if rgb is not None else 0,
+                 intensity=pick("intensity"), classification=pick("classification"),
+                 source="+".join(c.source for c in clouds))
+
+
+def _inside(x, y, box) -> np.ndarray:
+    return (x >= box[0]) & (x < box[2]) & (y >= box[1]) & (y < box[3])
+
+
+def run_tile(job: TileJob) -> TileResult:
+    """Read the tile's window from its files, run the pipeline, keep the core points' labels.
+    Runs in any process: Taichi is started once per process (backend.init is idempotent)."""
+    from roadx_ti import backend, io, pipelines
+    from roadx_ti.stages.base import StageContext
+
+    t_start = time.perf_counter()
+    tile = job.tile
+    pieces, xs, ys, owners = [], [], [], []
+    for k in tile.files:
+        piece = io.read(job.paths[k], bounds=tile.window, origin=job.read_origin)
+        if piece.n:
+            x, y = _world_xy(piece)
+            piece.las = None           # the record is not needed for processing; free it
+            pieces.append(piece)
+            xs.append(x)
+            ys.append(y)
+            owners.append(k)
+    read_s = time.perf_counter() - t_start
+    result = TileResult(index=tile.index, parts={}, segments=0, read_seconds=read_s,
+                        worker=f"{socket.gethostname()}:{os.getpid()}")
+    if not pieces:
+        result.seconds = time.perf_counter() - t_start
+        return result
+    counts = [p.n for p in pieces]
+    cloud = _concat(pieces, job.read_origin)
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    del pieces, xs, ys
+    if not backend.is_initialized():
+        backend.init(job.backend, threads=job.threads)
+    t0 = time.perf_counter()
+    labels = pipelines.run(cloud, pipelines.build_stages(job.stage_specs), ctx=StageContext(seed=job.seed))
+    result.pipeline_seconds = time.perf_counter() - t0
+    result.stages = [{k: r[k] for k in ("stage", "points_in", "points_out", "seconds")} for r in labels.stages]
+    n = cloud.n
+    del cloud
+    col = np.searchsorted(job.plan_x_edges, x, side="right") - 1
+    row = np.searchsorted(job.plan_y_edges, y, side="right") - 1
+    core = (col == tile.col) & (row == tile.row)
+    sizes = np.cumsum([0] + counts)
+    for k, lo, hi in zip(owners, sizes[:-1], sizes[1:]):
+        keep = np.flatnonzero(core[lo:hi]) + lo
+        result.parts[k] = FilePart(labels.classification[keep], labels.decided_by[keep],
+                                   labels.segment_id[keep], labels.processed[keep])
+    result.points_read = int(n)
+    result.points_core = int(core.sum())
+    seg = labels.segment_id
+    result.segments = int(seg.max()) + 1 if n else 0
+    if result.segments:
+        # points of the buffer that are a neighbour's core points, and my core points in its
+        # window: the neighbour holds the same two sets, in the same order, from its side
+        rows_, cols_ = job.tile_of_cell.shape
+        valid = (col >= 0) & (col < cols_) & (row >= 0) & (row < rows_)
+        owner_tile = np.full(n, -1, np.int64)
+        owner_tile[valid] = job.tile_of_cell[row[valid], col[valid]]
+        for u in tile.neighbours:
+            result.buffer_in[u] = seg[owner_tile == u]
+            result.core_in[u] = seg[core & _inside(x, y, job.windows[u])]
+    result.seconds = time.perf_counter() - t_start
+    return result
+
+
+# -------------------------------------------------------------------------------- executors
+
+def make_jobs(plan: TilePlan, files: list[CatalogFile], stage_specs, *, backend: str,
+              threads: int | None, seed: int) -> list[TileJob]:
+    return [TileJob(tile=t, paths={k: files[k].path for k in t.files}, plan_x_edges=plan.x_edges,
+                    plan_y_edges=plan.y_edges, tile_of_cell=plan.tile_of_cell,
+                    windows={u: plan.tiles[u].window for u in t.neighbours}, read_origin=plan.read_origin,
+                    stage_specs=list(stage_specs), backend=backend, threads=threads, seed=seed)
+            for t in plan.tiles]
+
+
+def _failure(tile: Tile, exc: BaseException, attempts: int) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    core = ", ".join(f"{v:.2f}" for v in tile.core)
+    return (f"tile ({tile.col}, {tile.row}) with core bounds ({core}) failed after {attempts} "
+            f"attempt(s): {type(exc).__name__}: {text}; no output was written")
+
+
+def run_in_process(jobs: list[TileJob], on_done) -> None:
+    """Tiles one after the other in this process (no cluster)."""
+    for job in jobs:
+        try:
+            result = run_tile(job)
+        except Exception as exc:
+            raise TileError(_failure(job.tile, exc, 1)) from exc
+        on_done(result)
+
+
+def run_on_dask(client, jobs: list[TileJob], on_done, *, in_flight: int) -> None:
+    """Tiles on a dask.distributed cluster, at most ``in_flight`` submitted at once; each tile is
+    retried RETRIES times (a tile on a worker that dies is rescheduled by Dask on another)."""
+    from distributed import as_completed
+
+    token = uuid.uuid4().hex[:8]
+    pending = iter(jobs)
+    running = {}
+    done = as_completed()
+
+    def submit():
+        job = next(pending, None)
+        if job is not None:
+            fut = client.submit(run_tile, job, retries=RETRIES, pure=False,
+                                key=f"roadx-tile-{job.tile.col}-{job.tile.row}-{token}")
+            running[fut] = job
+            done.add(fut)
+
+    for _ in range(max(1, in_flight)):
+        submit()
+    try:
+        for fut in done:
+            job = running.pop(fut)
+            if fut.status != "finished":
+                exc = fut.exception()
+                raise TileError(_failure(job.tile, exc, RETRIES + 1))
+            result = fut.result()
+            fut.release()
+            on_done(result)
+            submit()
+    finally:
+        if running:
+            client.cancel(list(running))
+
+
+class _DaskSession:
+    """A client on an existing scheduler, or on a LocalCluster of worker processes we own."""
+
+    def __init__(self, workers: int | None, scheduler: str | None, log):
+        from distributed import Client, LocalCluster
+
+        self.cluster = None
+        if scheduler:
+            self.client = Client(scheduler, timeout="30s")
+            self.client.wait_for_workers(1, timeout=120)
+            self.kind = "scheduler"
+        else:
+            self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                        dashboard_address=None, silence_logs=logging.WARNING)
+            self.client = Client(self.cluster)
+            self.kind = "local-cluster"
+        self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+        log.info("Dask %s at %s with %d worker(s)", self.kind, self.client.scheduler.address, self.workers)
+
+    def close(self):
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+
+class _Progress:
+    """A tqdm bar on a terminal, log lines otherwise (nothing when disabled)."""
+
+    def __init__(self, total: int, enabled: bool, log):
+        self.total, self.enabled, self.log, self.count = total, enabled, log, 0
+        self.bar = None
+        if enabled and sys.stderr.isatty():
+            from tqdm import tqdm
+            self.bar = tqdm(total=total, unit="tile", file=sys.stderr, leave=False)
+
+    def step(self, tile: Tile, result: TileResult):
+        self.count += 1
+        if self.bar is not None:
+            self.bar.update(1)
+        elif self.enabled:
+            self.log.info("tile %d/%d (%d, %d): %d points read, %d core, %.2f s on %s", self.count,
+                          self.total, tile.col, tile.row, result.points_read, result.points_core,
+                          result.seconds, result.worker)
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
+# ----------------------------------------------------------------------------- reconciliation
+
+def reconcile_segments(plan: TilePlan, results: dict) -> dict:
+    """Give segments cut by core borders one id: union-find over (tile, local segment) nodes that
+    share a point (labelled in both tiles), then compact global ids in tile order. Rewrites the
+    parts' segment ids in place; returns counts for the summary."""
+    base, total = {}, 0
+    for t in range(len(plan.tiles)):
+        base[t] = total
+        total += results[t].segments
+    parent = np.arange(total, dtype=np.int64)
+
+    def find(a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    links = 0
+    for t, res in results.items():
+        for u, mine in res.buffer_in.items():
+            other = results[u].core_in.get(t)
+            if other is None:       # the neighbour found no segments at all
+                continue
+            if len(other) != len(mine):
+                raise TileError(f"tiles {t} and {u} disagree on the points they share "
+                                f"({len(mine)} vs {len(other)}); no output was written")
+            both = (mine >= 0) & (other >= 0)
+            pairs = np.unique(np.column_stack([base[t] + mine[both], base[u] + other[both]]), axis=0)
+            for a, b in pairs:
+                ra, rb = find(a), find(b)
+                if ra != rb:
+                    parent[max(ra, rb)] = min(ra, rb)
+                    links += 1
+    global_id = {}
+    for t in range(len(plan.tiles)):
+        res = results[t]
+        if not res.segments:
+            continue
+        local_to_global = np.full(res.segments, -1, np.int32)
+        used = np.unique(np.concatenate([p.segment_id for p in res.parts.values()] or [np.zeros(0, np.int32)]))
+        for s in used[used >= 0]:
+            root = find(base[t] + int(s))
+            local_to_global[s] = global_id.setdefault(root, len(global_id))
+        for part in res.parts.values():
+            seg = part.segment_id
+            part.segment_id = np.where(seg >= 0, local_to_global[np.maximum(seg, 0)], -1).astype(np.int32)
+        res.buffer_in, res.core_in = {}, {}
+    return {"local_segments": total, "merges": links, "segments": len(global_id)}
+
+
+# ------------------------------------------------------------------------------------- merge
+
+class _Merge:
+    """Hands out each input point's labels from its core tile, in file order, and keeps counts."""
+
+    def __init__(self, plan: TilePlan, results: dict, files: list[CatalogFile], truth_classes, target: int):
+        self.plan, self.results, self.files = plan, results, files
+        self.cursor = {}
+        self.truth_classes, self.target = truth_classes, target
+        self.class_counts = np.zeros(256, np.int64)
+        self.truth, self.pred = [], []
+        self.written = 0
+
+    def labels(self, k: int, x: np.ndarray, y: np.ndarray, input_classes=None):
+        n = len(x)
+        tiles = self.plan.tile_index(x, y)
+        if (tiles < 0).any():
+            raise TileError(f"{self.files[k].path}: {int((tiles < 0).sum())} points lie outside the "
+                            "header bounds, so no tile read them; fix the header (e.g. pdal translate)")
+        out = (np.empty(n, np.uint8), np.empty(n, np.uint8), np.empty(n, np.int32), np.empty(n, bool))
+        order = np.argsort(tiles, kind="stable")
+        starts = np.flatnonzero(np.r_[True, np.diff(tiles[order]) != 0])
+        ends = np.r_[starts[1:], n]
+        for s, e in zip(starts, ends):
+            t = int(tiles[order[s]])
+            part = self.results[t].parts.get(k)
+            c = self.cursor.get((t, k), 0)
+            if part is None or c + (e - s) > len(part.classification):
+                raise TileError(f"{self.files[k].path}: tile {t} returned fewer core points than the "
+                                "file holds in its core; no output was written")
+            idx = order[s:e]
+            for dst, src in zip(out, (part.classification, part.decided_by, part.segment_id, part.processed)):
+                dst[idx] = src[c:c + e - s]
+            self.cursor[(t, k)] = c + e - s
+        self.class_counts += np.bincount(out[0], minlength=256)
+        if input_classes is not None and self.truth_classes:
+            from roadx_ti.metrics import class_mask
+            self.truth.append(class_mask(input_classes, self.truth_classes))
+            self.pred.append(out[0] == self.target)
+        return out
+
+    def check_file(self, k: int, seen: int) -> None:
+        """Every point of file k was handed out exactly once and every core point returned used."""
+        if seen != self.files[k].count:
+            raise TileError(f"{self.files[k].path}: read {seen} points, the header says {self.files[k].count}")
+        for t, res in self.results.items():
+            part = res.parts.get(k)
+            if part is not None and self.cursor.get((t, k), 0) != len(part.classification):
+                raise TileError(f"{self.files[k].path}: tile {t} returned {len(part.classification)} core "
+                                f"points, the file has {self.cursor.get((t, k), 0)} there")
+
+
+def _is_las(path) -> bool:
+    return Path(path).suffix.lower() in (".las", ".laz")
+
+
+def _write_las_stream(out: Path, file_ids, merge: _Merge, processed_only: bool) -> int:
+    """Stream the files' points (their LAS records, bit-exact but classification and the result
+    dimensions) into one LAS/LAZ written atomically; returns the number of points written."""
+    import laspy
+
+    from roadx_ti import io
+    from roadx_ti.io import las as io_las
+
+    def record(k, header, chunk, labels):
+        cls, dec, seg, proc = labels
+        return io_las._las_from_record(out, laspy.LasData(header, chunk), len(chunk), cls,
+                                       {"roadx_label": dec, "segment_id": seg},
+                                       proc if processed_only else None)
+
+    written = 0
+    with io.atomic_output(out) as tmp:
+        writer = None
+        try:
+            for k in file_ids:
+                seen = 0
+                with laspy.open(merge.files[k].path) as reader:
+                    header = copy.deepcopy(reader.header)
+                    if writer is None:    # the first file's header, with the result dimensions
+                        empty = laspy.ScaleAwarePointRecord.zeros(0, header=header)
+                        first = record(k, header, empty, (np.zeros(0, np.uint8), np.zeros(0, np.uint8),
+                                                          np.zeros(0, np.int32), np.zeros(0, bool)))
+                        writer = laspy.open(tmp, mode="w", header=first.header,
+                                            do_compress=out.suffix.lower() == ".laz")
+                    for chunk in reader.chunk_iterator(MERGE_CHUNK_POINTS):
+                        seen += len(chunk)
+                        labels = merge.labels(k, np.asarray(chunk.x), np.asarray(chunk.y),
+                                              np.asarray(chunk.classification))
+                        las = record(k, header, chunk, labels)
+                        try:
+                            writer.write_points(las.points)
+                        except laspy.errors.LaspyException as exc:
+                            raise io.InputError(f"{merge.files[k].path}: cannot be merged with "
+                                                f"{merge.files[file_ids[0]].path} ({exc}: point formats "
+                                                "differ); use output.mode per-file") from None
+                        written += len(las.points)
+                merge.check_file(k, seen)
+        finally:
+            if writer is not None:
+                writer.close()
+    return written
+
+
+def _write_generic(out: Path, file_ids, merge: _Merge, processed_only: bool) -> int:
+    """Any other format: whole files in memory, written with io.write."""
+    from roadx_ti import io
+
+    clouds, labels = [], []
+    for k in file_ids:
+        cloud = io.read(merge.files[k].path, origin=merge.plan.read_origin)
+        x, y = _world_xy(cloud)
+        labels.append(merge.labels(k, x, y, cloud.classification))
+        merge.check_file(k, cloud.n)
+        clouds.append(cloud)
+    cloud = clouds[0] if len(clouds) == 1 else _concat(clouds, merge.plan.read_origin)
+    cls, dec, seg, proc = (np.concatenate(parts) for parts in zip(*labels))
+    io.write(out, cloud, classification=cls, extra_dims={"roadx_label": dec, "segment_id": seg},
+             subset=proc if processed_only else None)
+    return int(proc.sum()) if processed_only else cloud.n
+
+
+def write_outputs(plan, results, files, outputs: list[tuple[Path, list[int]]], *, processed_only: bool,
+                  truth_classes, target: int) -> tuple[int, _Merge]:
+    merge = _Merge(plan, results, files, truth_classes, target)
+    written = 0
+    for out, file_ids in outputs:
+        stream = _is_las(out) and all(_is_las(files[k].path) for k in file_ids)
+        written += (_write_las_stream if stream else _write_generic)(out, file_ids, merge, processed_only)
+    return written, merge
+
+
+# ---------------------------------------------------------------------------------- entry point
+
+def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, scheduler: str | None = None,
+                tile_size: float | None = None, buffer: float | None = None, output_mode: str = "merged",
+                progress: bool = True, log=None, summary_path=None) -> dict:
+    """Run ``cfg``'s pipeline over a catalog of files in tiles with buffers and write the result.
+
+    input_paths: files and/or folders (catalog order = input order). output_path: the merged
+    LAS/LAZ (output_mode 'merged'), or a folder receiving one file per input under the input's
+    name ('per-file'). workers: start a local Dask cluster of that many processes; scheduler:
+    'tcp://HOST:PORT' of an existing one; neither: tiles run one by one in this process.
+    tile_size (m): core tile edge (None: about TARGET_TILE_POINTS points per tile; inf: untiled);
+    buffer (m): None derives it from the stages' reach (stage_reach). The summary (returned and
+    written to summary_path, default '<output stem>.summary.json' or '<folder>/summary.json')
+    holds the plan, per-tile timings and counts. Raises TileError (nothing written) when a tile
+    fails after its retries."""
+    from roadx_ti import __version__, io, pipelines, report
+    from roadx_ti.config import PIPELINE_TARGET
+
+    log = log or log_default
+    t_start = time.perf_counter()
+    if output_mode not in MODES:
+        raise ValueError(f"output mode must be one of {', '.join(MODES)}, got {output_mode!r}")
+    if workers is not None and scheduler:
+        raise ValueError("give workers (a local cluster) or scheduler (an existing one), not both")
+    if workers is not None and int(workers) < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    files = catalog(input_paths)
+    total_points = sum(f.count for f in files)
+    if total_points == 0:
+        raise io.InputError(f"the inputs hold no points: {', '.join(f.path for f in files)}")
+    stage_specs = cfg.stage_list() or pipelines.default_stage_specs(cfg.pipeline)
+    auto_buffer, reaches = default_buffer(stage_specs)
+    buffer = auto_buffer if buffer is None else float(buffer)
+    tile_size = default_tile_size(files) if tile_size is None else float(tile_size)
+    plan = plan_tiles(files, tile_size, buffer)
+
+    inputs = [f.path for f in files]
+    if output_mode == "merged":
+        out = Path(output_path)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        io.check_output_path(out, inputs)
+        outputs = [(out, list(range(len(files))))]
+        summary_path = Path(summary_path or out.with_suffix("").as_posix() + ".summary.json")
+    else:
+        folder = Path(output_path)
+        folder.mkdir(parents=True, exist_ok=True)
+        names = [Path(f.path).name for f in files]
+        if len(set(names)) != len(names):
+            raise io.InputError("per-file output needs distinct input file names; "
+                                f"{len(names) - len(set(names))} repeat")
+        outputs = [(folder / name, [k]) for k, name in enumerate(names)]
+        for o, _ in outputs:
+            io.check_output_path(o, inputs)
+        summary_path = Path(summary_path or folder / "summary.json")
+
+    log.info("%d file(s), %d points; %d tile(s) of %s m with a %.1f m buffer", len(files), total_points,
+             len(plan.tiles), "all" if not np.isfinite(plan.tile_size) else f"{plan.tile_size:g}", plan.buffer)
+    results: dict[int, TileResult] = {}
+    bar = _Progress(len(plan.tiles), progress, log)
+
+    def on_done(result: TileResult):
+        results[result.index] = result
+        bar.step(plan.tiles[result.index], result)
+
+    t_tiles = time.perf_counter()
+    session = None
+    try:
+        if workers is None and not scheduler:
+            executor, n_workers = "in-process", 1
+            jobs = make_jobs(plan, files, stage_specs, backend=cfg.backend, threads=cfg.threads, seed=cfg.seed)
+            run_in_process(jobs, on_done)
+        else:
+            session = _DaskSession(workers, scheduler, log)
+            executor, n_workers = session.kind, session.workers
+            # one Taichi runtime per worker process; CPU unless the config names a backend
+            threads = cfg.threads or (max(1, (os.cpu_count() or 1) // int(workers)) if workers else None)
+            jobs = make_jobs(plan, files, stage_specs, backend="cpu" if cfg.backend == "auto" else cfg.backend,
+                             threads=threads, seed=cfg.seed)
+            run_on_dask(session.client, jobs, on_done, in_flight=2 * n_workers)
+    finally:
+        bar.close()
+        if session is not None:
+            session.close()
+    tiles_s = time.perf_counter() - t_tiles
+
+    t_merge = time.perf_counter()
+    segments = reconcile_segments(plan, results)
+    target = PIPELINE_TARGET[cfg.pipeline]
+    written, merge = write_outputs(plan, results, files, outputs, processed_only=cfg.output.points == "processed",
+                                   truth_classes=cfg.truth_classes, target=target)
+    merge_s = time.perf_counter() - t_merge
+
+    summary = {
+        "roadx_ti": __version__, "pipeline": cfg.pipeline, "executor": executor, "workers": n_workers,
+        "scheduler": scheduler, "output_mode": output_mode,
+        "inputs": [{"path": f.path, "points": f.count, "bounds": list(f.bounds)} for f in files],
+        "outputs": [str(o) for o, _ in outputs], "points": total_points, "points_written": written,
+        "tiling": plan.describe() | {"buffer_from_stages": reaches},
+        "segments": segments,
+        "target_class": target, "target_points": int(merge.class_counts[target]),
+        "class_counts": {str(c): int(v) for c, v in enumerate(merge.class_counts) if v},
+        "seconds": {"tiles": round(tiles_s, 4), "merge": round(merge_s, 4),
+                    "total": round(time.perf_counter() - t_start, 4),
+                    "tile_sum": round(sum(r.seconds for r in results.values()), 4)},
+        "tiles": [{"tile": [t.col, t.row], "core": list(t.core), "window": list(t.window),
+                   "files": [Path(files[k].path).name for k in t.files],
+                   "points_read": results[t.index].points_read, "points_core": results[t.index].points_core,
+                   "read_seconds": round(results[t.index].read_seconds, 4),
+                   "pipeline_seconds": round(results[t.index].pipeline_seconds, 4),
+                   "seconds": round(results[t.index].seconds, 4), "worker": results[t.index].worker}
+                  for t in plan.tiles],
+    }
+    truth = np.concatenate(merge.truth) if merge.truth else None
+    if truth is not None and truth.any():
+        from roadx_ti.metrics import scores
+        summary["truth_classes"] = cfg.truth_classes
+        summary["accuracy"] = scores(truth, np.concatenate(merge.pred))
+    summary["summary_path"] = str(summary_path)
+    report.write_json(summary_path, summary)
+    log.info("wrote %s (%d points, %d tiles, %s) in %.2f s", ", ".join(summary["outputs"][:3])
+             + (" ..." if len(outputs) > 3 else ""), written, len(plan.tiles), executor,
+             time.perf_counter() - t_start)
+    return summary
+
+
+# --------------------------------------------------------------------------- tiled vs untiled
+
+DISTANCE_BINS = (0.0, 1.0, 2.0, 5.0, 10.0, 20.0, math.inf)
+
+
+def _border_distance(x_edges, y_edges, x, y) -> np.ndarray:
+    x_edges, y_edges = np.asarray(x_edges, np.float64), np.asarray(y_edges, np.float64)
+    col = np.clip(np.searchsorted(x_edges, x, side="right") - 1, 0, len(x_edges) - 2)
+    row = np.clip(np.searchsorted(y_edges, y, side="right") - 1, 0, len(y_edges) - 2)
+    return np.minimum.reduce([x - x_edges[col], x_edges[col + 1] - x, y - y_edges[row], y_edges[row + 1] - y])
+
+
+def segment_agreement(a: np.ndarray, b: np.ndarray) -> float:
+    """Share of the points segmented in ``a`` whose ``b`` id is the one most of their ``a``
+    segment has (1.0: every ``a`` segment is whole in ``b``); ids are arbitrary labels."""
+    sel = a >= 0
+    if not sel.any():
+        return 1.0
+    pairs, counts = np.unique(np.column_stack([a[sel], b[sel]]), axis=0, return_counts=True)
+    best = np.zeros(int(a.max()) + 1, np.int64)
+    np.maximum.at(best, pairs[:, 0], counts)
+    return float(best.sum() / sel.sum())
+
+
+def compare_outputs(tiled_summary: dict, tiled_output, reference_output, *, summary_path=None) -> dict:
+    """Tiled vs reference (untiled) labels of the same points (merged outputs, same order):
+    disagreements counted and located by their distance to the nearest core border, and the
+    segment partitions compared. Added to the summary JSON as 'comparison' when summary_path is given."""
+    from roadx_ti import io, report
+
+    a, b = io.read(tiled_output), io.read(reference_output)
+    if a.n != b.n:
+        raise ValueError(f"{tiled_output} has {a.n} points, {reference_output} {b.n}")
+    xa, ya = _world_xy(a)
+    xb, yb = _world_xy(b)
+    if not (np.array_equal(xa, xb) and np.array_equal(ya, yb)):
+        raise ValueError("the outputs do not hold the same points in the same order")
+    differ = a.classification != b.classification
+    tiling = tiled_summary["tiling"]
+    dist = _border_distance(tiling["x_edges"], tiling["y_edges"], xa[differ], ya[differ])
+    hist, _ = np.histogram(dist, bins=DISTANCE_BINS)
+    seg_a = np.asarray(a.las["segment_id"], np.int64)
+    seg_b = np.asarray(b.las["segment_id"], np.int64)
+    crossing, whole = 0, 0
+    if (seg_b >= 0).any():
+        # reference segments spread over several cores: are they one segment in the tiled run?
+        cells = np.column_stack([np.searchsorted(tiling["x_edges"], xb, side="right"),
+                                 np.searchsorted(tiling["y_edges"], yb, side="right")])
+        for s in np.unique(seg_b[seg_b >= 0]):
+            sel = seg_b == s
+            if len(np.unique(cells[sel], axis=0)) > 1:
+                crossing += 1
+                ids, counts = np.unique(seg_a[sel], return_counts=True)
+                whole += int(counts.max() >= 0.99 * sel.sum() and ids[counts.argmax()] >= 0)
+    comparison = {
+        "points": int(a.n), "disagreements": int(differ.sum()),
+        "agreement": float(1.0 - differ.mean()) if a.n else 1.0,
+        "disagreements_by_border_distance_m": {
+            f"{lo:g}-{hi:g}": int(h) for lo, hi, h in zip(DISTANCE_BINS[:-1], DISTANCE_BINS[1:], hist)},
+        "disagreement_max_border_distance_m": float(dist.max()) if len(dist) else None,
+        "segment_agreement": min(segment_agreement(seg_b, seg_a), segment_agreement(seg_a, seg_b)),
+        "reference_segments_crossing_borders": crossing, "crossing_segments_kept_whole": whole,
+        "reference": str(reference_output),
+    }
+    if summary_path is not None:
+        summary = dict(tiled_summary) | {"comparison": comparison}
+        report.write_json(summary_path, summary)
+    return comparison

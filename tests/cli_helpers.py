@@ -1,0 +1,131 @@
+"""Helpers for tests that drive the real CLI in a subprocess (python -m roadx_ti ...).
+
+Inputs are written with laspy / numpy directly, not through roadx_ti.io, so a reader bug cannot
+hide behind a matching writer bug.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import laspy
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+CONFIGS = REPO / "configs"
+PYTHON = sys.executable
+
+# A pipeline of two cheap stages (compiles in about a second): enough to read, run kernels on and
+# write a cloud, for the cases that test files and options rather than the methods.
+TINY_CONFIG = """\
+pipeline: road
+output: {path: out/result.laz, report_png: false}
+stages:
+  - uniform_downsample: {ratio: 1.0}
+  - grid_slope: {step: 0.5, slope_max: 0.1, dh_max: 1.0}
+"""
+
+# The demo's road pipeline with parameters shrunk so a few thousand points take seconds.
+DEMO_FAST = ["--set", "stages.cloth_smooth.iterations=60", "--set", "stages.ransac_planes.hypotheses=200",
+             "--set", "output.report_png=false"]
+
+
+def cli_command(*args) -> list[str]:
+    return [PYTHON, "-m", "roadx_ti", *map(str, args)]
+
+
+def cli_env() -> dict:
+    env = dict(os.environ)
+    env.pop("TI_ARCH", None)   # the CLI picks its backend from --backend
+    return env
+
+
+def run_cli(*args, cwd=None, timeout=300) -> subprocess.CompletedProcess:
+    """Run ``python -m roadx_ti ARGS`` and return the finished process (text stdout/stderr)."""
+    return subprocess.run(cli_command(*args), capture_output=True, text=True, cwd=cwd,
+                          timeout=timeout, env=cli_env())
+
+
+def start_cli(*args, cwd=None) -> subprocess.Popen:
+    """Start ``python -m roadx_ti ARGS`` without waiting (stdout/stderr to pipes)."""
+    return subprocess.Popen(cli_command(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, cwd=cwd, env=cli_env())
+
+
+def message_lines(stderr: str) -> list[str]:
+    """stderr without Taichi's own start-up banner lines ('[Taichi] ...')."""
+    return [line for line in stderr.splitlines() if line.strip() and not line.startswith("[Taichi]")]
+
+
+def error_line(proc: subprocess.CompletedProcess, code: int) -> str:
+    """Assert ``proc`` failed with exit ``code`` and said why in exactly one line; return it."""
+    assert "Traceback" not in proc.stderr, proc.stderr
+    assert proc.returncode == code, f"exit {proc.returncode}, expected {code}: {proc.stderr}"
+    lines = message_lines(proc.stderr)
+    assert len(lines) == 1, f"expected one message line, got {lines}"
+    assert lines[0].startswith("roadx_ti: "), lines[0]
+    return lines[0]
+
+
+def sha256(path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def listing(folder) -> set[str]:
+    """Names of everything in ``folder`` (recursively, relative), empty when it does not exist."""
+    folder = Path(folder)
+    if not folder.exists():
+        return set()
+    return {str(p.relative_to(folder)) for p in folder.rglob("*")}
+
+
+def partial_files(folder) -> list[str]:
+    """Temporary files the atomic writer leaves while it writes ('.NAME.*.partial.EXT')."""
+    return sorted(n for n in listing(folder) if ".partial" in n or Path(n).name.startswith("."))
+
+
+def write_tiny_config(folder, body: str = TINY_CONFIG) -> Path:
+    path = Path(folder) / "tiny.yaml"
+    path.write_text(textwrap.dedent(body))
+    return path
+
+
+def write_las(path, xyz, *, rgb=None, classification=None, scale=0.01, offset=None,
+              point_format=None, version="1.4") -> Path:
+    """A LAS/LAZ file of world coordinates ``xyz`` (float64 (n, 3)) written by laspy alone."""
+    xyz = np.asarray(xyz, np.float64).reshape(-1, 3)
+    if point_format is None:
+        point_format = 7 if rgb is not None else 6
+    header = laspy.LasHeader(point_format=point_format, version=version)
+    header.scales = np.full(3, scale)
+    header.offsets = (np.floor(xyz.min(axis=0)) if len(xyz) else np.zeros(3)) if offset is None else offset
+    las = laspy.LasData(header)
+    if len(xyz):
+        las.x, las.y, las.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    else:
+        las.points = laspy.ScaleAwarePointRecord.zeros(0, header=header)
+    if rgb is not None:
+        rgb = np.asarray(rgb, np.uint16)
+        las.red, las.green, las.blue = rgb[:, 0], rgb[:, 1], rgb[:, 2]
+    if classification is not None:
+        las.classification = np.asarray(classification, np.uint8)
+    las.write(str(path))
+    return Path(path)
+
+
+def bumpy_ground(n: int, seed: int = 0, side: float = 20.0) -> np.ndarray:
+    """``n`` world points on a gently undulating surface of ``side`` metres, near a UTM corner."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(0.0, side, size=(n, 2))
+    z = 100.0 + 0.05 * np.sin(xy[:, 0]) + 0.05 * np.cos(0.7 * xy[:, 1]) + rng.normal(0, 0.005, n)
+    return np.column_stack([xy[:, 0] + 500_000.0, xy[:, 1] + 4_500_000.0, z])
+
+
+def synth(path, points: str = "20k", seed: int = 0, kind: str = "uav-road") -> Path:
+    proc = run_cli("synth", "--kind", kind, "--points", points, "--seed", seed, "-o", path)
+    assert proc.returncode == 0, proc.stderr
+    return Path(path)

@@ -1,0 +1,386 @@
+"""The bad-input catalogue: every case through the real CLI (python -m roadx_ti run ...).
+
+Each case is a builder below: it writes its inputs into its own folder and says what the CLI must
+do (its docstring documents the choice: an error, or a graceful result where an error would be
+silly). For every case the test asserts the exit code, no traceback, the one-line message (or the
+warning), that no output and no temporary file is left on failure (or that a previous output is
+intact), and that no input file changed (sha256 before and after).
+
+The CLI runs cost seconds each (imports, Taichi start), so the module fixture runs all cases at
+once in a few worker threads, and each case is then checked by its own test.
+"""
+from __future__ import annotations
+
+import os
+import struct
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import laspy
+import numpy as np
+import pytest
+
+from cli_helpers import (CONFIGS, DEMO_FAST, bumpy_ground, error_line, partial_files, run_cli, sha256,
+                         write_las, write_tiny_config)
+
+ROAD_CLASSES = {1, 2, 6, 11}
+
+
+@dataclass
+class Case:
+    args: list                      # arguments of `python -m roadx_ti`
+    code: int                       # expected exit code
+    message: str = ""               # failures: expected part of the one error line
+    warning: str = ""               # graceful results: expected part of a stderr line
+    output: Path | None = None      # the output the run would write
+    previous: bytes | None = None   # an output that existed before the run and must survive
+    check: Callable | None = None   # graceful results: check(case) on the written output
+    hashes: dict = field(default_factory=dict)
+
+
+def _run(config, folder: Path, *inputs, output=None, extra=(), code=1, **kw) -> Case:
+    out = output if output is not None else folder / "out" / "result.laz"
+    args = ["run", config, "--backend", "cpu", "--quiet", "--output", out, *extra]
+    if inputs:
+        args += ["--input", *inputs]
+    return Case(args=args, code=code, output=Path(out), **kw)
+
+
+def _tiny(folder: Path, *inputs, **kw) -> Case:
+    return _run(write_tiny_config(folder), folder, *inputs, **kw)
+
+
+def _demo(folder: Path, *inputs, extra=(), **kw) -> Case:
+    return _run(CONFIGS / "demo.yaml", folder, *inputs, extra=[*DEMO_FAST, *extra], **kw)
+
+
+def _las_result(case: Case, source: Path, classes=ROAD_CLASSES) -> laspy.LasData:
+    """The written LAS/LAZ: every input point in input order, coordinates and header bit-exact."""
+    out, src = laspy.read(case.output), laspy.read(source)
+    assert len(out.points) == len(src.points)
+    for dim in ("X", "Y", "Z"):
+        np.testing.assert_array_equal(np.asarray(out[dim]), np.asarray(src[dim]))
+    np.testing.assert_array_equal(out.header.scales, src.header.scales)
+    np.testing.assert_array_equal(out.header.offsets, src.header.offsets)
+    assert set(np.unique(np.asarray(out.classification)).tolist()) <= classes
+    assert {"roadx_label", "segment_id"} <= set(out.point_format.extra_dimension_names)
+    return out
+
+
+# ------------------------------------------------------------------------------------- cases
+def case_missing_file(d):
+    """An input that does not exist: a usage/config error (exit 2) naming it, before any work."""
+    return _tiny(d, d / "in" / "nope.laz", code=2, message="no such file")
+
+
+def case_empty_file(d):
+    """A 0-byte file: a data error (exit 1)."""
+    (d / "in" / "empty.laz").write_bytes(b"")
+    return _tiny(d, d / "in" / "empty.laz", message="empty file (0 bytes)")
+
+
+def case_not_a_las_file(d):
+    """Text bytes under a .laz name: a data error, 'not a LAS/LAZ file'."""
+    (d / "in" / "notes.laz").write_text("these are not points\n" * 20)
+    return _tiny(d, d / "in" / "notes.laz", message="not a LAS/LAZ file")
+
+
+def case_zero_points(d):
+    """A valid LAS file with 0 points: a data error ('holds no points'); an empty result file
+    would only hide the mistake."""
+    write_las(d / "in" / "zero.las", np.zeros((0, 3)))
+    return _demo(d, d / "in" / "zero.las", message="holds no points")
+
+
+def case_one_point(d):
+    """1 point through the whole road pipeline: a graceful result, a valid output with that one
+    point (every stage copes with n = 1: SOR is skipped, RANSAC finds no plane)."""
+    src = write_las(d / "in" / "one.las", bumpy_ground(1))
+    return _demo(d, src, code=0, check=lambda c: _las_result(c, src))
+
+
+def case_two_points(d):
+    """2 points through the whole road pipeline: a graceful, valid output."""
+    src = write_las(d / "in" / "two.las", bumpy_ground(2))
+    return _demo(d, src, code=0, check=lambda c: _las_result(c, src))
+
+
+def _ground_laz(d, name="ground.laz", n=3000) -> Path:
+    return write_las(d / "in" / name, bumpy_ground(n))
+
+
+def case_truncated_laz(d):
+    """A LAZ file cut in half: a data error; a previous output of the same name stays intact."""
+    data = _ground_laz(d, "full.laz").read_bytes()
+    (d / "in" / "full.laz").unlink()
+    (d / "in" / "cut.laz").write_bytes(data[: len(data) // 2])
+    (d / "out").mkdir()
+    (d / "out" / "result.laz").write_bytes(b"previous result")
+    return _tiny(d, d / "in" / "cut.laz", message="truncated or corrupt", previous=b"previous result")
+
+
+def case_corrupt_laz(d):
+    """Garbage bytes in the compressed point data (header intact): a data error."""
+    src = _ground_laz(d, "bad.laz")
+    with laspy.open(src) as reader:
+        start = reader.header.offset_to_point_data
+    data = bytearray(src.read_bytes())
+    data[start + 200: start + 2200] = np.random.default_rng(1).integers(0, 256, 2000, dtype=np.uint8).tobytes()
+    src.write_bytes(bytes(data))
+    return _tiny(d, src, message="truncated or corrupt")
+
+
+def case_nan_coordinates(d):
+    """A NaN coordinate in a text file (LAS cannot hold NaN): a data error counting the points."""
+    xyz = bumpy_ground(500)
+    xyz[17, 2] = np.nan
+    np.savetxt(d / "in" / "nan.xyz", xyz, fmt="%.3f")
+    return _tiny(d, d / "in" / "nan.xyz", message="1 of 500 points have NaN or infinite coordinates")
+
+
+def case_infinite_coordinates(d):
+    """+inf and -inf coordinates in an NPZ file: a data error counting the points."""
+    xyz = bumpy_ground(500)
+    xyz[3, 0], xyz[4, 1] = np.inf, -np.inf
+    np.savez(d / "in" / "inf.npz", xyz=xyz)
+    return _tiny(d, d / "in" / "inf.npz", message="2 of 500 points have NaN or infinite coordinates")
+
+
+def case_all_points_identical(d):
+    """500 copies of one point through the whole road pipeline: a graceful, valid output in which
+    all points (being the same point) get the same class and roadx_label."""
+    src = write_las(d / "in" / "same.las", np.repeat(bumpy_ground(1), 500, axis=0))
+
+    def check(c):
+        out = _las_result(c, src)
+        assert len(np.unique(np.asarray(out.classification))) == 1
+        assert len(np.unique(np.asarray(out["roadx_label"]))) == 1
+    return _demo(d, src, code=0, check=check)
+
+
+def case_many_duplicates(d):
+    """300 distinct points, each 10 times, through the whole road pipeline: a graceful result in
+    which the copies of a point all get the same class (every test is on coordinates only)."""
+    base = bumpy_ground(300, side=6.0)
+    src = write_las(d / "in" / "dups.laz", np.tile(base, (10, 1)))
+
+    def check(c):
+        classes = np.asarray(_las_result(c, src).classification).reshape(10, 300)
+        assert (classes == classes[0]).all()
+    return _demo(d, src, code=0, check=check)
+
+
+def case_utm_1e7_las(d):
+    """Coordinates near 10^7 m at 1 cm scale: the output's X/Y/Z integers (and header scale and
+    offset) equal the input's; a flat ground keeps nearly every point through grid_slope, which
+    float32 world coordinates (7 digits) could not do."""
+    xyz = bumpy_ground(2000, seed=3) + [9_400_000.0, 5_400_000.0, 0.0]
+    src = write_las(d / "in" / "far.laz", np.round(xyz, 2), scale=0.01, offset=np.zeros(3))
+
+    def check(c):
+        out = _las_result(c, src)
+        assert (np.asarray(out["roadx_label"]) == 0).mean() > 0.9   # grid_slope removed < 10 %
+    return _tiny(d, src, code=0, check=check)
+
+
+def case_utm_1e7_text(d):
+    """The same 10^7 m cloud with centimetre detail as text (no scale in the file): the output LAZ
+    (1 mm scale) holds every input coordinate exactly to the centimetre."""
+    xyz = np.round(bumpy_ground(2000, seed=4) + [9_400_000.0, 5_400_000.0, 0.0], 2)
+    np.savetxt(d / "in" / "far.xyz", xyz, fmt="%.2f")
+
+    def check(c):
+        out = laspy.read(c.output)
+        world = np.column_stack([out.x, out.y, out.z])
+        assert np.abs(world - xyz).max() < 1e-6
+    return _tiny(d, d / "in" / "far.xyz", code=0, check=check)
+
+
+def _colour_config(d, source="auto") -> Path:
+    return write_tiny_config(d, f"""\
+        pipeline: road
+        output: {{report_png: false}}
+        stages:
+          - color_growing: {{k: 12, point_threshold: 10, region_threshold: 60, min_region_size: 20,
+                             target: largest, color_source: {source}}}
+        """)
+
+
+def _patch(seed=0, n=3000):
+    """Two colour patches (grey road, green verge) on a flat ground."""
+    xyz = bumpy_ground(n, seed=seed, side=15.0)
+    road = (xyz[:, 0] - 500_000.0) < 9.0
+    rgb = np.where(road[:, None], [[110, 110, 112]], [[60, 140, 50]])
+    rgb = rgb + np.random.default_rng(seed).integers(-2, 3, rgb.shape)
+    return xyz, rgb.astype(np.uint16), road
+
+
+def case_colour_stage_without_colour(d):
+    """color_growing on a cloud with neither colour nor intensity: a warning, then growing on
+    geometry; a valid output."""
+    src = write_las(d / "in" / "grey.laz", bumpy_ground(1500, side=8.0))
+    return _run(_colour_config(d), d, src, code=0, warning="no colour and no intensity",
+                check=lambda c: _las_result(c, src))
+
+
+def case_colour_8_and_16_bit(d):
+    """The same colours stored 8-bit (0-255) and 16-bit (x 257): identical labels (thresholds are
+    in 8-bit units), the colours written back bit-exact, and the grey road patch found."""
+    xyz, rgb, road = _patch()
+    src8 = write_las(d / "in" / "c8.laz", xyz, rgb=rgb)
+    src16 = write_las(d / "in" / "c16.laz", xyz, rgb=rgb * 257)
+    out16 = d / "out" / "result16.laz"
+
+    def check(c):
+        out8 = _las_result(c, src8)
+        proc = run_cli("run", _colour_config(d), "--backend", "cpu", "--quiet", "--input", src16,
+                       "--output", out16)
+        assert proc.returncode == 0, proc.stderr
+        c16 = Case(args=[], code=0, output=out16)
+        out16_las = _las_result(c16, src16)
+        np.testing.assert_array_equal(np.asarray(out8.classification), np.asarray(out16_las.classification))
+        for name, src, o in (("8", src8, out8), ("16", src16, out16_las)):
+            s = laspy.read(src)
+            for ch in ("red", "green", "blue"):
+                np.testing.assert_array_equal(np.asarray(o[ch]), np.asarray(s[ch]), err_msg=name)
+        target = np.asarray(out8.classification) == 11
+        assert (target == road).mean() > 0.9    # the largest region is the grey road
+    return _run(_colour_config(d), d, src8, code=0, check=check)
+
+
+def case_wrong_typed_key(d):
+    """A wrong-typed value given with --set: exit 2, the key and the value named."""
+    src = _ground_laz(d)
+    return _tiny(d, src, extra=["--set", "stages.grid_slope.slope_max=steep"], code=2,
+                 message="stages[1].grid_slope.slope_max = 'steep'")
+
+
+def case_unknown_key(d):
+    """An unknown top-level key given with --set: exit 2, 'unknown key'."""
+    src = _ground_laz(d)
+    return _tiny(d, src, extra=["--set", "colour=true"], code=2, message="colour = True: unknown key")
+
+
+def case_zero_cell_size(d):
+    """grid_slope.step = 0: exit 2 before any work, the key named."""
+    src = _ground_laz(d)
+    return _tiny(d, src, extra=["--set", "stages.grid_slope.step=0"], code=2,
+                 message="stages[1].grid_slope.step = 0")
+
+
+def case_negative_cloth_resolution(d):
+    """cloth_smooth.cloth_resolution = -1 in the demo config: exit 2, the key named."""
+    src = _ground_laz(d)
+    return _demo(d, src, extra=["--set", "stages.cloth_smooth.cloth_resolution=-1"], code=2,
+                 message="stages[4].cloth_smooth.cloth_resolution = -1")
+
+
+def case_k_larger_than_cloud(d):
+    """sor.k = 500 and color_growing.k = 64 on 60 points: a graceful result; SOR says it uses
+    k = n - 1 (a warning) and the output is valid."""
+    xyz, rgb, _ = _patch(n=60)
+    src = write_las(d / "in" / "few.laz", xyz, rgb=rgb)
+    return _demo(d, src, extra=["--set", "stages.sor.k=500", "--set", "stages.color_growing.k=64",
+                                "--set", "stages.uniform_downsample.ratio=1.0"],
+                 code=0, warning="sor: k = 500 but only 60 points", check=lambda c: _las_result(c, src))
+
+
+def case_output_under_a_file(d):
+    """An output 'folder' that is a regular file (chmod cannot stop root, this can): exit 1."""
+    src = _ground_laz(d)
+    (d / "out").mkdir()
+    (d / "out" / "plain").write_text("a file, not a folder")
+    return _tiny(d, src, output=d / "out" / "plain" / "result.laz", message="cannot create the output folder")
+
+
+def case_output_in_proc(d):
+    """An output in /proc, where no file can be created even by root: exit 1 with one line; the
+    pipeline runs, then the atomic writer cannot create its temporary file."""
+    src = _ground_laz(d)
+    return _tiny(d, src, output=Path("/proc") / f"roadx_ti_test_{os.getpid()}.laz",
+                 message="cannot create a file in the output folder /proc")
+
+
+def case_output_is_input(d):
+    """--output naming the input file itself: exit 1, refused before any work."""
+    src = _ground_laz(d)
+    return _tiny(d, src, output=src, message="refusing to write over the input file")
+
+
+def case_output_is_input_through_link(d):
+    """--output a symbolic link to the input: exit 1, refused (same file)."""
+    src = _ground_laz(d)
+    (d / "out").mkdir()
+    (d / "out" / "link.laz").symlink_to(src)
+    return _tiny(d, src, output=d / "out" / "link.laz", message="refusing to write over the input file")
+
+
+def case_unknown_output_format(d):
+    """An output name with no point-cloud extension: exit 2 before any work (not after the run)."""
+    src = _ground_laz(d)
+    return _tiny(d, src, output=d / "out" / "result.las.bak", code=2, message="unknown output format '.bak'")
+
+
+def case_more_points_than_an_array_holds(d):
+    """A LAS 1.4 header claiming 2^31 + 5 points (more than 32-bit indices address): exit 1 with
+    a message pointing to tiling, from the header alone (nothing is allocated)."""
+    src = write_las(d / "in" / "huge.las", bumpy_ground(10))
+    data = bytearray(src.read_bytes())
+    struct.pack_into("<Q", data, 247, 2**31 + 5)     # LAS 1.4 64-bit point count
+    src.write_bytes(bytes(data))
+    return _tiny(d, src, message="split it into tiles")
+
+
+def case_text_with_two_columns(d):
+    """A text table of 2 columns: exit 1, 'expected X Y Z'."""
+    np.savetxt(d / "in" / "xy.txt", bumpy_ground(50)[:, :2], fmt="%.2f")
+    return _tiny(d, d / "in" / "xy.txt", message="expected X Y Z")
+
+
+CASES = {name[len("case_"):]: fn for name, fn in sorted(globals().items()) if name.startswith("case_")}
+
+
+@pytest.fixture(scope="module")
+def catalogue(tmp_path_factory):
+    """{case name: (Case, CompletedProcess)}: every case built, then all run concurrently."""
+    cases = {}
+    for name, build in CASES.items():
+        folder = tmp_path_factory.mktemp(name)
+        (folder / "in").mkdir()
+        case = build(folder)
+        case.hashes = {p.resolve(): sha256(p) for p in (folder / "in").rglob("*") if p.is_file()}
+        cases[name] = case
+    workers = min(4, max(2, os.cpu_count() or 2))
+    with ThreadPoolExecutor(workers) as pool:
+        procs = dict(zip(cases, pool.map(lambda c: run_cli(*c.args), cases.values())))
+    return {name: (cases[name], procs[name]) for name in cases}
+
+
+def test_catalogue_size():
+    assert len(CASES) >= 20
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_bad_input(name, catalogue):
+    case, proc = catalogue[name]
+    assert "Traceback" not in proc.stderr, proc.stderr
+    assert proc.returncode == case.code, f"exit {proc.returncode}, expected {case.code}: {proc.stderr}"
+    if case.code != 0:
+        line = error_line(proc, case.code)
+        assert case.message in line, line
+        if case.previous is not None:
+            assert case.output.read_bytes() == case.previous
+        elif case.output.exists() or case.output.is_symlink():
+            assert case.output.resolve() in case.hashes     # only 'output is input' cases
+        else:
+            assert not case.output.with_suffix(".summary.json").exists()
+    else:
+        assert case.warning in proc.stderr, proc.stderr
+        assert case.output.is_file()
+        case.check(case)
+    if case.output.parent.is_dir() and str(case.output.parent) != "/proc":
+        assert partial_files(case.output.parent) == []
+    for path, digest in case.hashes.items():
+        assert sha256(path) == digest, f"{path} changed"

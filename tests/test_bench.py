@@ -1,0 +1,130 @@
+"""The benchmark harness (`python -m roadx_ti bench`): a tiny --quick run end to end, the JSON rows
+and the results page, and the rows of cases that are missing, fail or crash their worker."""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import textwrap
+
+import pytest
+
+from roadx_ti import bench
+
+REQUIRED = {"stage", "points", "backend", "impl", "median_s", "first_call_s", "peak_rss_mb", "mpts_per_s",
+            "ratio", "status", "bytes_per_point", "threads"}
+
+
+def _args(*argv):
+    parser = argparse.ArgumentParser()
+    bench.add_arguments(parser)
+    return parser.parse_args(list(argv))
+
+
+def _run(tmp_path, *argv):
+    out = tmp_path / "out"
+    code = bench.main(_args(*argv, "--out", str(out), "--results", str(tmp_path / "RESULTS.md")))
+    assert code == 0
+    (json_path,) = out.glob("bench-*.json")
+    return json.loads(json_path.read_text())
+
+
+def test_quick_run_rows_and_results_page(tmp_path):
+    run = _run(tmp_path, "--quick", "--sizes", "10k", "--stages", "grid_min,knn", "--backends", "cpu")
+    rows = run["rows"]
+    got = {(r["stage"], r["impl"], r["backend"]) for r in rows}
+    assert got == {("grid_min", "roadx_ti", "cpu"), ("grid_min", "numpy", "cpu"),
+                   ("knn", "roadx_ti", "cpu"), ("knn", "scipy", "cpu")}
+    for r in rows:
+        assert REQUIRED <= set(r), REQUIRED - set(r)
+        assert r["points"] == 10_000
+        assert r["status"] == "ok", r["error"]
+        assert r["median_s"] > 0 and r["first_call_s"] > 0 and r["repeats"] >= 1
+        assert math.isclose(r["mpts_per_s"], 10_000 / r["median_s"] / 1e6, rel_tol=1e-3)
+        assert r["median_s"] == pytest.approx(sorted(r["times_s"])[len(r["times_s"]) // 2], rel=0.5)
+        assert r["peak_rss_mb"] > 0 and r["bytes_per_point"] >= 0
+    by = {(r["stage"], r["impl"]): r for r in rows}
+    for stage, anchor in (("grid_min", "numpy"), ("knn", "scipy")):
+        mine, theirs = by[(stage, "roadx_ti")], by[(stage, anchor)]
+        expected = theirs["median_s"] / mine["median_s"]
+        assert mine["ratio"][anchor] == pytest.approx(expected, rel=1e-2)
+        assert theirs["ratio"]["cpu"] == pytest.approx(expected, rel=1e-2)
+    assert by[("knn", "roadx_ti")]["threads"] >= 1
+    meta = run["meta"]
+    assert meta["machine"]["cpu_model"] and meta["machine"]["logical_cores"] >= 1
+    assert "taichi" in meta["machine"]["versions"]
+
+    page = (tmp_path / "RESULTS.md").read_text()
+    assert meta["command"] in page and "--quick" in meta["command"]
+    assert meta["machine"]["cpu_model"] in page
+    summary = page.split("## Summary")[1].split("##")[0]
+    knn_line = next(line for line in summary.splitlines() if line.startswith("| knn "))
+    assert f"{by[('knn', 'roadx_ti')]['ratio']['scipy']:.3g}x scipy" in knn_line
+    assert "### grid_min" in page and "### knn" in page
+    assert (tmp_path / "throughput.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    # the page regenerates from the JSON alone
+    again = tmp_path / "again" / "RESULTS.md"
+    assert bench.main(_args("--render", *map(str, (tmp_path / "out").glob("bench-*.json")),
+                            "--results", str(again))) == 0
+    assert "### knn" in again.read_text() and (again.parent / "throughput.png").exists()
+
+
+def test_missing_failing_and_crashing_cases_are_reported(tmp_path, monkeypatch):
+    cases = tmp_path / "cases"
+    cases.mkdir()
+    (cases / "knn.py").write_text(textwrap.dedent('''
+        STAGE = "knn"
+        SCENE = "uav-road"
+        VARIANTS = [{"name": "", "params": {"k": 4}}]
+        TARGETS = {"numpy": 1.0}
+
+        def roadx_ti(scene, k):
+            from roadx_ti.kernels import no_such_kernel   # not written yet
+            return lambda: no_such_kernel(scene.xyz, k)
+
+        def absent(scene, k):
+            import no_such_package   # an anchor that is not installed
+            return lambda: no_such_package.run(scene.xyz)
+
+        def numpy_sort(scene, k):
+            import numpy as np
+            return lambda: np.sort(scene.xyz[:, 0])
+
+        def broken(scene, k):
+            def run():
+                raise RuntimeError("anchor blew up")
+            return run
+
+        def crashing(scene, k):
+            import os
+            return lambda: os._exit(3)
+
+        IMPLS = {"roadx_ti": roadx_ti, "absent": absent, "crashing": crashing, "broken": broken,
+                 "numpy": numpy_sort}
+    '''))
+    monkeypatch.setenv(bench.CASES_ENV, str(cases))
+    # the anchors only: their worker starts no Taichi runtime, which keeps this test fast
+    run = _run(tmp_path, "--quick", "--sizes", "5k", "--stages", "knn", "--backends", "cpu",
+               "--impls", "absent,crashing,broken,numpy")
+    status = {r["impl"]: r for r in run["rows"]}
+    assert set(status) == {"absent", "crashing", "broken", "numpy"}
+    assert status["absent"]["status"] == "missing" and "no_such_package" in status["absent"]["error"]
+    assert status["broken"]["status"] == "error" and "anchor blew up" in status["broken"]["error"]
+    assert status["crashing"]["status"] == "error" and "status 3" in status["crashing"]["error"]
+    # the worker restarted after the crash and ran the case after it
+    assert status["numpy"]["status"] == "ok" and status["numpy"]["median_s"] > 0
+    page = (tmp_path / "RESULTS.md").read_text()
+    assert "Missing, skipped and failed cases" in page
+    for impl in ("absent", "broken", "crashing"):
+        assert f"| {impl} | {status[impl]['status']} |" in page
+
+
+def test_unknown_stage_is_a_usage_error(tmp_path):
+    assert bench.main(_args("--stages", "nope", "--out", str(tmp_path))) == 2
+
+
+def test_point_counts():
+    assert bench._count("1M") == 1_000_000 and bench._count("250k") == 250_000 and bench._count("1200") == 1200
+    with pytest.raises(argparse.ArgumentTypeError):
+        bench._count("lots")
