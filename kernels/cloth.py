@@ -9,7 +9,8 @@ Follows the `cloth-simulation-filter` package (jianboqi/CSF) step by step, in it
   particle to the right in the row, then left, then towards row 0, then up the column) and, where
   row and column are empty, the nearest filled particle in the 5x5 constraint neighbourhood,
   repeated outwards;
-- per iteration: Verlet step (damping 0.01, gravity 0.2 * time_step^4, as the package does it) of movable particles, then
+- per iteration: Verlet step of movable particles (damping 0.01, gravity 0.2 * time_step^4, as
+  the package does it), then
   every particle's constraint pass over its 16 neighbours (distance 1 and 2 in x, y and diagonal)
   with the package's rigidness coefficients, max displacement of movable particles, collision
   (a particle below its collision height is put on it and becomes immovable); stop after
@@ -24,7 +25,13 @@ Here the same per-particle passes are swept in particle order within bands of BA
 every other band runs in parallel (they touch disjoint rows), then the rest, so the result is
 deterministic and differs from the package only in the order at band borders.
 
-Everything runs on the device; the host reads one stop flag every few iterations.
+Cost: each band keeps the list of its active particles (movable, or with a movable neighbour:
+the only ones whose constraint pass does anything), refreshed every ITERATIONS_PER_CHECK
+iterations, and every per-iteration step runs over these lists only. On the CPU with few
+threads, or for small cloths, all iterations run in one serial launch (_simulate_serial) in
+exactly the banded order, so both schedules give bit-identical results; otherwise one launch per
+iteration (_iterate) and a host read of the stop flag every ITERATIONS_PER_CHECK iterations.
+Numpy points are passed to the kernels in place on the CPU (no copy of millions of points).
 """
 
 from dataclasses import dataclass
@@ -42,8 +49,8 @@ BUFFER_PARTICLES = 2       # particles added before the bounding box on each axi
 STOP_DISPLACEMENT = 0.005  # early stop when the largest movable displacement is below this
 SLOPE_HEIGHT_STEP = 0.3    # the package's height_diff_threshold (slope smoothing)
 SLOPE_MIN_COMPONENT = 50   # slope smoothing only for movable components larger than this
-SERIAL_CELLS = 2**18        # on the CPU, smaller cloths run all iterations in one serial launch
-BBOX_CHUNK = 4096           # points per thread of the bounding-box reduction
+SERIAL_CELLS = 2**18       # on the CPU, smaller cloths run all iterations in one serial launch
+BBOX_CHUNK = 4096          # points per thread of the bounding-box reduction
 ITERATIONS_PER_CHECK = 8   # iterations launched between two host reads of the stop flag
 
 # the package's constraint coefficients per rigidness (index = rigidness, 0..14; 0.5 / 1 beyond)
@@ -235,6 +242,13 @@ def _fill_from_neighbours(cell_point: ti.types.ndarray(dtype=ti.i32, ndim=1),
 # of its 16 neighbours is movable: only then does its constraint pass change anything. The lists
 # shrink as the cloth settles, so late iterations cost what is still moving, not the cloth size.
 
+def _threads_per_band_block():
+    """Loop block size of the loops over bands, evaluated when a kernel compiles: 1 on the CPU,
+    whose default blocks would give several bands to one thread; the default elsewhere
+    (Vulkan refuses blocks of one)."""
+    return 1 if _host_memory_backend() else None
+
+
 @ti.kernel
 def _init_cloth(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
                 old_pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
@@ -327,29 +341,43 @@ def _stop_test(band_max: ti.template(), state: ti.template(), iterations):
 
 
 @ti.func
+def _constraint_step(pos: ti.template(), movable: ti.template(), here, mp, q, single_move,
+                     double_move):
+    # one neighbour of the package's satisfyConstraintSelf; returns the particle's new height
+    mq = movable[q]
+    if mp == 1:
+        d = pos[q] - here
+        if mq == 1:
+            here += d * double_move
+            pos[q] -= d * double_move
+        else:
+            here += d * single_move
+    elif mq == 1:
+        pos[q] -= (pos[q] - here) * single_move
+    return here
+
+
+@ti.func
 def _constraint_pass(pos: ti.template(), movable: ti.template(), c, width, rows, single_move,
                      double_move):
     # the package's satisfyConstraintSelf: its 16 neighbours in its list order, each correction
-    # seeing the previous ones (pos[c] stays in a register: no neighbour is c itself)
+    # seeing the previous ones (pos[c] stays in a register: no neighbour is c itself). Interior
+    # particles, nearly all of them, take the unrolled path without bounds tests.
     i = c % width
     j = c // width
-    interior = 2 <= i < width - 2 and 2 <= j < rows - 2
     here = pos[c]
     mp = movable[c]
-    for k in range(16):
-        o = _neighbour_offset(k)
-        if interior or (0 <= i + o[0] < width and 0 <= j + o[1] < rows):
-            q = c + o[1] * width + o[0]
-            mq = movable[q]
-            if mp == 1:
-                d = pos[q] - here
-                if mq == 1:
-                    here += d * double_move
-                    pos[q] -= d * double_move
-                else:
-                    here += d * single_move
-            elif mq == 1:
-                pos[q] -= (pos[q] - here) * single_move
+    if 2 <= i < width - 2 and 2 <= j < rows - 2:
+        for k in ti.static(range(16)):
+            here = _constraint_step(pos, movable, here, mp,
+                                    c + ti.static(_NEIGHBOUR_DJ[k]) * width + ti.static(_NEIGHBOUR_DI[k]),
+                                    single_move, double_move)
+    else:
+        for k in range(16):
+            o = _neighbour_offset(k)
+            if 0 <= i + o[0] < width and 0 <= j + o[1] < rows:
+                here = _constraint_step(pos, movable, here, mp, c + o[1] * width + o[0],
+                                        single_move, double_move)
     pos[c] = here
 
 
@@ -366,7 +394,7 @@ def _refresh_active(movable: ti.types.ndarray(dtype=ti.i32, ndim=1),
                     band_list: ti.types.ndarray(dtype=ti.i32, ndim=1),
                     band_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
                     width: ti.i32, rows: ti.i32, band_rows: ti.i32):
-    ti.loop_config(block_dim=1)
+    ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
     for b in band_count:
         _refresh_band(b, movable, band_list, band_count, width, rows, band_rows)
 
@@ -381,27 +409,26 @@ def _iterate(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
              band_max: ti.types.ndarray(dtype=ti.i32, ndim=1),
              state: ti.types.ndarray(dtype=ti.i32, ndim=1), width: ti.i32, rows: ti.i32,
              band_rows: ti.i32, acceleration: ti.f32, single_move: ti.f32, double_move: ti.f32,
-             iterations: ti.i32):
+             iterations: ti.i32, bands: ti.i32):
     # one iteration of the package's loop, bands in parallel: Verlet step, constraint sweep
     # (every other band, they touch disjoint rows, then the others), largest displacement and
     # collision, stop test; nothing once stopped
-    bands = band_count.shape[0]
-    ti.loop_config(block_dim=1)
+    ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
     for b in range(bands):
         if state[0] == 0:
             _verlet_band(b, pos, old_pos, movable, band_list, band_count, width, band_rows,
                          acceleration)
-    ti.loop_config(block_dim=1)
+    ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
     for t in range((bands + 1) // 2):
         if state[0] == 0:
             _sweep_band(2 * t, pos, movable, band_list, band_count, width, rows, band_rows,
                         single_move, double_move)
-    ti.loop_config(block_dim=1)
+    ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
     for t in range(bands // 2):
         if state[0] == 0:
             _sweep_band(2 * t + 1, pos, movable, band_list, band_count, width, rows, band_rows,
                         single_move, double_move)
-    ti.loop_config(block_dim=1)
+    ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
     for b in range(bands):
         if state[0] == 0:
             _collide_band(b, pos, old_pos, movable, height, band_list, band_count, band_max,
@@ -421,11 +448,11 @@ def _simulate_serial(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
                      band_max: ti.types.ndarray(dtype=ti.i32, ndim=1),
                      state: ti.types.ndarray(dtype=ti.i32, ndim=1), width: ti.i32, rows: ti.i32,
                      band_rows: ti.i32, acceleration: ti.f32, single_move: ti.f32,
-                     double_move: ti.f32, iterations: ti.i32, refresh_every: ti.i32):
+                     double_move: ti.f32, iterations: ti.i32, refresh_every: ti.i32,
+                     bands: ti.i32):
     # the same steps in the same order as _refresh_active + _iterate, all iterations in one
     # thread and one launch: for small cloths, where per-iteration launches and thread wake-ups
-    # would cost more than the work
-    bands = band_count.shape[0]
+    # would cost more than the work. CPU only: the SPIR-V backends do not serialize the loop.
     ti.loop_config(serialize=True)
     for it in range(iterations):
         if state[0] == 0:
@@ -535,8 +562,9 @@ def _cloth_height_above(xyz: ti.template(), pos: ti.template(), p, x0, y0, res, 
     # z minus the bilinear cloth height (the package's c2cdist)
     u = (xyz[p, 0] - x0) / res
     v = (xyz[p, 1] - y0) / res
-    col = ti.min(ti.max(ti.cast(ti.floor(u), ti.i32), 0), width - 2)
-    row = ti.min(ti.max(ti.cast(ti.floor(v), ti.i32), 0), rows - 2)
+    # truncation, not floor: the same once clamped to >= 0, and cheaper
+    col = ti.min(ti.max(ti.cast(u, ti.i32), 0), width - 2)
+    row = ti.min(ti.max(ti.cast(v, ti.i32), 0), rows - 2)
     sx = u - col
     sy = v - row
     c = row * width + col
@@ -567,6 +595,15 @@ def _ground_mask(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
 def _host_memory_backend() -> bool:
     """True when kernels run on the host CPU: numpy arrays are then passed to them in place."""
     return ti.lang.impl.current_cfg().arch in (ti.x64, ti.arm64)
+
+
+def _serial_simulation(cells: int) -> bool:
+    """On the CPU, run all iterations in one thread and launch (_simulate_serial) for small
+    cloths, and for every cloth when there are at most two threads: banded parallelism then
+    saves less than its five synchronised tasks per iteration cost (measured on 2 cores)."""
+    if not _host_memory_backend():
+        return False
+    return cells <= SERIAL_CELLS or ti.lang.impl.current_cfg().cpu_max_num_threads <= 2
 
 
 def _kernel_points(xyz):
@@ -699,10 +736,10 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
     k = int(rigidness)
     single = _SINGLE_MOVE[k] if k <= 14 else 1.0
     double = _DOUBLE_MOVE[k] if k <= 14 else 0.5
-    if cells <= SERIAL_CELLS and _host_memory_backend():
+    if _serial_simulation(cells):
         _simulate_serial(pos, old_pos, movable, height, band_list, band_count, band_max, state,
                          cols, rows, BAND_ROWS, acceleration, single, double, int(iterations),
-                         ITERATIONS_PER_CHECK)
+                         ITERATIONS_PER_CHECK, bands)
     done = 0
     while done < iterations and state.to_numpy()[0] == 0:
         batch = min(ITERATIONS_PER_CHECK, iterations - done)
@@ -710,7 +747,7 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
             _refresh_active(movable, band_list, band_count, cols, rows, BAND_ROWS)
         for _ in range(batch):
             _iterate(pos, old_pos, movable, height, band_list, band_count, band_max, state, cols,
-                     rows, BAND_ROWS, acceleration, single, double, int(iterations))
+                     rows, BAND_ROWS, acceleration, single, double, int(iterations), bands)
         done += batch
         if state.to_numpy()[0] == 1:
             break

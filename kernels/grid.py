@@ -6,7 +6,8 @@ with the bounding-box volume. Point indices are counting-sorted by bucket (integ
 histogram, ``scan.exclusive_scan_into``, atomic scatter); each bucket is then sorted by
 (cell, point index), which makes the order independent of thread timing and puts each cell's
 points in one contiguous run. A lookup hashes the cell, takes the bucket's range and skips points
-of other cells that share the bucket (hash collisions). Taichi has no atomic compare-and-swap, so
+of other cells that share the bucket (hash collisions). Blocks of 4x4x4 cells map to consecutive
+buckets, so the sorted order is spatially coherent. Taichi has no atomic compare-and-swap, so
 an open-addressing table is not an option; the bucket sort needs none.
 """
 
@@ -54,9 +55,14 @@ def cell_of(x: ti.f32, y: ti.f32, z: ti.f32, ox: ti.f32, oy: ti.f32, oz: ti.f32,
 
 @ti.func
 def cell_hash(c: ti.math.ivec3, mask: ti.i32) -> ti.i32:
-    h = (ti.cast(c[0], ti.u32) * ti.u32(_P1)) ^ (ti.cast(c[1], ti.u32) * ti.u32(_P2)) \
-        ^ (ti.cast(c[2], ti.u32) * ti.u32(_P3))
-    return ti.cast(h & ti.cast(mask, ti.u32), ti.i32)
+    # Blocks of 4x4x4 cells hash to 64 consecutive buckets (cell position inside the block in
+    # the low bits): neighbouring cells then sit close together in the sorted arrays, and
+    # queries processed in sorted order walk space block by block (cache locality).
+    b = c >> 2
+    h = (ti.cast(b[0], ti.u32) * ti.u32(_P1)) ^ (ti.cast(b[1], ti.u32) * ti.u32(_P2)) \
+        ^ (ti.cast(b[2], ti.u32) * ti.u32(_P3))
+    local = ti.cast((c[0] & 3) | ((c[1] & 3) << 2) | ((c[2] & 3) << 4), ti.u32)
+    return ti.cast(((h << ti.u32(6)) | local) & ti.cast(mask, ti.u32), ti.i32)
 
 
 @ti.func
@@ -221,12 +227,25 @@ def build_grid(xyz, cell_size=None, *, points_per_cell: float = 8.0) -> Grid:
 # ---------------------------------------------------------------- voxel downsampling
 
 @ti.kernel
-def _voxel_pick(sorted_xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), sorted_cell: ti.types.ndarray(dtype=ti.i32, ndim=2),
+def _voxel_offsets(sorted_xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), sorted_cell: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                   ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32,
+                   offset: ti.types.ndarray(dtype=ti.f32, ndim=2)):
+    # Offsets from the voxel corner: a point and the corner are within a factor of two, so the
+    # difference is exact. They go through memory (a separate kernel) so that fast-math cannot
+    # reassociate the later centroid arithmetic back onto the large absolute coordinates.
+    for s in range(sorted_xyz.shape[0]):
+        corner = ti.math.vec3(ox, oy, oz) + ti.cast(
+            ti.math.ivec3(sorted_cell[s, 0], sorted_cell[s, 1], sorted_cell[s, 2]), ti.f32) * cell_size
+        for a in ti.static(range(3)):
+            offset[s, a] = sorted_xyz[s, a] - corner[a]
+
+
+@ti.kernel
+def _voxel_pick(offset: ti.types.ndarray(dtype=ti.f32, ndim=2), sorted_cell: ti.types.ndarray(dtype=ti.i32, ndim=2),
                 order: ti.types.ndarray(dtype=ti.i32, ndim=1), keep: ti.types.ndarray(dtype=ti.i32, ndim=1)):
     # The first point of each cell run (runs are contiguous: buckets are sorted by cell) walks
-    # its run twice in a fixed order: centroid (as offsets from the first point, for precision),
-    # then the member nearest to it, ties to the lower index.
-    n = sorted_xyz.shape[0]
+    # its run twice in a fixed order: centroid, then the member nearest to it.
+    n = offset.shape[0]
     for s in range(n):
         c = ti.math.ivec3(sorted_cell[s, 0], sorted_cell[s, 1], sorted_cell[s, 2])
         first = 1
@@ -234,22 +253,23 @@ def _voxel_pick(sorted_xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), sorted_cell:
             if sorted_cell[s - 1, 0] == c[0] and sorted_cell[s - 1, 1] == c[1] and sorted_cell[s - 1, 2] == c[2]:
                 first = 0
         if first:
-            p0 = ti.math.vec3(sorted_xyz[s, 0], sorted_xyz[s, 1], sorted_xyz[s, 2])
             total = ti.math.vec3(0.0)
             e = s
             while e < n:
                 if sorted_cell[e, 0] != c[0] or sorted_cell[e, 1] != c[1] or sorted_cell[e, 2] != c[2]:
                     break
-                total += ti.math.vec3(sorted_xyz[e, 0], sorted_xyz[e, 1], sorted_xyz[e, 2]) - p0
+                total += ti.math.vec3(offset[e, 0], offset[e, 1], offset[e, 2])
                 e += 1
             centre = total / ti.cast(e - s, ti.f32)
             best = s
             best_d2 = ti.math.inf
             for t in range(s, e):
-                d = ti.math.vec3(sorted_xyz[t, 0], sorted_xyz[t, 1], sorted_xyz[t, 2]) - p0 - centre
+                d = ti.math.vec3(offset[t, 0], offset[t, 1], offset[t, 2]) - centre
                 d2 = d.dot(d)
-                # members are sorted by index within the run, so strict < keeps the lower index
-                if d2 < best_d2:
+                # members are sorted by index within the run, so a strict < keeps the lower
+                # index; the relative margin lets exact ties (e.g. two-point voxels) survive
+                # float32 rounding of the centroid
+                if d2 < best_d2 * (1.0 - 4e-6):
                     best_d2 = d2
                     best = t
             keep[order[best]] = 1
@@ -281,6 +301,9 @@ def voxel_downsample(xyz, voxel_size: float):
     grid = build_grid(xyz, voxel_size)
     keep = ndarray(ti.i32, (max(grid.n, 1),))
     if grid.n:
-        _voxel_pick(grid.sorted_xyz, grid.sorted_cell, grid.order, keep)
+        offset = ndarray(ti.f32, (grid.n, 3))
+        ox, oy, oz = grid.origin
+        _voxel_offsets(grid.sorted_xyz, grid.sorted_cell, ox, oy, oz, grid.cell_size, offset)
+        _voxel_pick(offset, grid.sorted_cell, grid.order, keep)
     idx = mask_to_indices(keep) if grid.n else ndarray(ti.i32, (0,))
     return idx if is_ndarray(xyz) else idx.to_numpy()

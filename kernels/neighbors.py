@@ -9,29 +9,34 @@ more cells than a brute scan costs, the query scans all points instead.
 Neighbours are ordered by (float32 distance, point index): ties break by index, so results are
 deterministic whatever the scan order.
 
-Two selection strategies share one scan loop:
-* k <= SMALL_K: a per-thread max-heap of SMALL_K slots, one pass (rings added incrementally).
-* larger k (SOR uses k = 500): selection by counting, with no per-thread array of k slots.
-  Count passes fix the ring L; radix passes over the float bits of the distance
-  (32-bin histograms, 5 bits a pass, in registers) narrow the bin holding the k-th candidate
-  until at most SMALL_K candidates remain in it, which are then sorted in registers. Exact ties
-  of the k-th distance are split by a second radix selection over point indices. A final pass
-  emits the k neighbours (or just sums their distances, for ``knn_mean_distance``).
+Two kernels, sharing the cell-range and membership helpers:
+* k <= SMALL_K (``_knn_heap``): a per-thread max-heap of SMALL_K slots in registers, one pass;
+  rings are added shell by shell and cells whose box lies beyond the current k-th are skipped.
+* larger k (``_knn_select``; SOR uses k = 500): selection by counting, with no per-thread array
+  of k slots. The pass that fixes the ring also histograms the float bits of the distances just
+  below the safe radius (32 bins in registers); further passes re-histogram inside the bin that
+  holds the k-th (5 bits a pass) until at most SMALL_K candidates remain, and the wanted one is
+  found among those by counting. Exact ties at the k-th distance are split by a radix selection
+  over point indices. ``knn_mean_distance`` sums distances per bin on the way (no extra pass);
+  ``knn`` makes one more pass to emit the k rows, then heap-sorts each row in place. Every pass
+  skips cells whose box lies beyond the current bound on the k-th distance.
 """
 
 import numpy as np
 import taichi as ti
 
-from .common import as_ndarray, is_ndarray, length, like_input, ndarray
+from .common import as_ndarray, length, like_input, ndarray
 from .grid import Grid, build_grid, cell_hash
 from .scan import exclusive_scan_into
 
 SMALL_K = 32
+PPC_DIV = 8.0
 MAX_K = 512
 _BINS = 32
 _BIN_BITS = 5
-_INF_KEY = 0x7F800000          # float bits of +inf: larger than any finite squared distance
-
+_INF_KEY = 0x7F800000          # float bits of +inf: larger than any finite distance
+_FIRST_SHIFT = 19              # first bins: 1/16 octave (2^23 float bits per octave), 2 octaves
+_BRUTE_SHIFT = 26              # brute force: 32 bins cover every finite float
 
 
 @ti.func
@@ -229,6 +234,17 @@ def _knn_heap(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndar
             out_mean[qi] = dist_sum / ti.cast(k + self_slots, ti.f32)
 
 
+@ti.func
+def _bins_top(lo: ti.i32, width_bits: ti.i32) -> ti.f32:
+    """Distance at the top of the bit range [lo, lo + 2^width_bits), +inf where that overflows."""
+    top = ti.math.inf
+    if width_bits < 30:
+        width = 1 << width_bits
+        if lo < _INF_KEY - width:
+            top = ti.bit_cast(lo + width, ti.f32)
+    return top
+
+
 @ti.kernel
 def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
                 scell: ti.types.ndarray(dtype=ti.i32, ndim=2), bstart: ti.types.ndarray(dtype=ti.i32, ndim=1),
@@ -244,25 +260,60 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
         c = ti.math.ivec3(scell[s, 0], scell[s, 1], scell[s, 2])
         u = (q - ti.math.vec3(ox, oy, oz)) * inv_cell
 
-        # 1. the ring whose safe radius holds at least k candidates (or all points)
+        # 1. the ring whose safe radius holds at least k candidates (or all points). The same
+        #    pass histograms the distance bits of the top two octaves below the safe radius
+        #    (32 bins of 1/16 octave), so a first narrowing comes for free.
         ring = 1
         brute = 0
-        sr = 0.0
         searching = 1
+        sr = 0.0
+        bound = 0.0
+        lo = 0
+        shift = 0
+        below = 0                  # candidates known to rank before the current bins
+        dist_sum = 0.0             # their distance sum (mean only)
+        hist = ti.Vector([0] * _BINS, ti.i32)
+        hsum = ti.Vector([0.0] * _BINS, ti.f32)
         while searching:
             sr = _safe_radius(u, c, ring, cell_size)
+            if brute:
+                sr = ti.math.inf
             span = 2 * ring + 1
             n_cells = span * span * span
             if brute:
                 n_cells = 1
+                shift = _BRUTE_SHIFT
+                lo = 0
+            else:
+                shift = _FIRST_SHIFT
+                lo = ti.max(ti.bit_cast(sr, ti.i32) - (_BINS << _FIRST_SHIFT), 0)
+            for bz in ti.static(range(_BINS)):
+                hist[bz] = 0
+                hsum[bz] = 0.0
+            bound = sr
             count = 0
+            below = 0
+            dist_sum = 0.0
             for t in range(n_cells):
-                target = c + _cube_offset(t, span, ring)
-                rg = _cell_range(target, brute, n, bstart, mask)
+                d = _cube_offset(t, span, ring)
+                target = c + d
+                rg = ti.math.ivec2(0, 0)
+                if brute or _box_distance(u, c, d, cell_size) <= bound:
+                    rg = _cell_range(target, brute, n, bstart, mask)
                 for j in range(rg[0], rg[1]):
                     if _is_member(j, target, brute, qi, order, scell):
-                        if _distance(j, q, sxyz) < sr:
+                        dist = _distance(j, q, sxyz)
+                        if dist < sr or brute:
                             count += 1
+                            v = ti.bit_cast(dist, ti.i32)
+                            if v < lo:
+                                below += 1
+                                dist_sum += dist
+                            else:
+                                hb = (v - lo) >> shift
+                                if hb < _BINS:
+                                    hist[hb] += 1
+                                    hsum[hb] += dist
             if count >= k or brute:
                 searching = 0
             elif (2 * ring + 3) * (2 * ring + 3) * (2 * ring + 3) > brute_cells:
@@ -273,39 +324,53 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
         n_cells = span * span * span
         if brute:
             n_cells = 1
-        hi = _INF_KEY
-        if brute == 0:
-            hi = ti.bit_cast(sr, ti.i32)
 
-        # 2. radix narrowing: 32-bin histograms of the distance bits (phase 0), then of the
-        #    point index among candidates at exactly the k-th distance (phase 1)
+        # 2. radix narrowing: choose the bin holding the k-th, re-histogram inside it (5 bits a
+        #    pass) until it holds at most SMALL_K candidates. Phase 1 splits candidates at
+        #    exactly the k-th distance by point index.
         phase = 0
-        lo = 0
-        shift = 0
-        while (hi >> shift) >= _BINS:
-            shift += 1
-        below = 0
         rank = k
         t_key = 0
+        fresh = 1                  # hist already holds the pass over the current bins
+        if below >= rank:
+            fresh = 0              # the k-th is closer than the first bins: restart from 0
+            lo = 0
+            below = 0
+            dist_sum = 0.0
+            shift = 0
+            while (ti.bit_cast(sr, ti.i32) >> shift) >= _BINS:
+                shift += 1
         narrowing = 1
-        hist = ti.Vector([0] * _BINS, ti.i32)
         while narrowing:
-            for bz in ti.static(range(_BINS)):
-                hist[bz] = 0
-            for t in range(n_cells):
-                target = c + _cube_offset(t, span, ring)
-                rg = _cell_range(target, brute, n, bstart, mask)
-                for j in range(rg[0], rg[1]):
-                    if _is_member(j, target, brute, qi, order, scell):
-                        v = ti.bit_cast(_distance(j, q, sxyz), ti.i32)
-                        if phase == 1:
-                            v = -1
-                            if ti.bit_cast(_distance(j, q, sxyz), ti.i32) == t_key:
-                                v = order[j]
-                        if v >= lo:
-                            hb = (v - lo) >> shift
-                            if hb < _BINS:
-                                hist[hb] += 1
+            if fresh == 0:
+                for bz in ti.static(range(_BINS)):
+                    hist[bz] = 0
+                    hsum[bz] = 0.0
+                bound = sr
+                if phase == 0:
+                    bound = _bins_top(lo, shift + _BIN_BITS)
+                else:
+                    bound = ti.bit_cast(t_key, ti.f32)
+                for t in range(n_cells):
+                    d = _cube_offset(t, span, ring)
+                    target = c + d
+                    rg = ti.math.ivec2(0, 0)
+                    if brute or _box_distance(u, c, d, cell_size) <= bound:
+                        rg = _cell_range(target, brute, n, bstart, mask)
+                    for j in range(rg[0], rg[1]):
+                        if _is_member(j, target, brute, qi, order, scell):
+                            dist = _distance(j, q, sxyz)
+                            v = ti.bit_cast(dist, ti.i32)
+                            if phase == 1:
+                                v = -1
+                                if ti.bit_cast(dist, ti.i32) == t_key:
+                                    v = order[j]
+                            if v >= lo:
+                                hb = (v - lo) >> shift
+                                if hb < _BINS:
+                                    hist[hb] += 1
+                                    hsum[hb] += dist
+            fresh = 0
             cum = below
             chosen = _BINS - 1
             found = 0
@@ -316,6 +381,8 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                         found = 1
                     else:
                         cum += hist[hb]
+                        if phase == 0:
+                            dist_sum += hsum[hb]
             below = cum
             lo += chosen << shift
             in_bin = hist[chosen]
@@ -327,6 +394,7 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                 phase = 1
                 rank -= below
                 below = 0
+                dist_sum += ti.cast(rank, ti.f32) * ti.bit_cast(t_key, ti.f32)
                 lo = 0
                 while (n >> shift) >= _BINS:
                     shift += 1
@@ -337,9 +405,15 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
         buf_key = ti.Vector([0] * SMALL_K, ti.i32)
         buf_idx = ti.Vector([0] * SMALL_K, ti.i32)
         size = 0
+        bound = ti.bit_cast(t_key, ti.f32)
+        if phase == 0:
+            bound = _bins_top(lo, shift)
         for t in range(n_cells):
-            target = c + _cube_offset(t, span, ring)
-            rg = _cell_range(target, brute, n, bstart, mask)
+            d = _cube_offset(t, span, ring)
+            target = c + d
+            rg = ti.math.ivec2(0, 0)
+            if brute or _box_distance(u, c, d, cell_size) <= bound:
+                rg = _cell_range(target, brute, n, bstart, mask)
             for j in range(rg[0], rg[1]):
                 if _is_member(j, target, brute, qi, order, scell):
                     key = ti.bit_cast(_distance(j, q, sxyz), ti.i32)
@@ -360,32 +434,35 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
             smaller = 0
             for other in range(size):
                 smaller += _pair_less(buf_key[other], buf_idx[other], buf_key[cand], buf_idx[cand])
+            if smaller <= wanted and phase == 0:
+                dist_sum += ti.bit_cast(buf_key[cand], ti.f32)
             if smaller == wanted:
                 t_key = buf_key[cand]
                 t_idx = buf_idx[cand]
 
-        # 4. emit every candidate up to (t_key, t_idx)
-        emitted = 0
-        dist_sum = 0.0
-        for t in range(n_cells):
-            target = c + _cube_offset(t, span, ring)
-            rg = _cell_range(target, brute, n, bstart, mask)
-            for j in range(rg[0], rg[1]):
-                if _is_member(j, target, brute, qi, order, scell):
-                    dist = _distance(j, q, sxyz)
-                    key = ti.bit_cast(dist, ti.i32)
-                    idx = order[j]
-                    if _pair_less(key, idx, t_key, t_idx) | (ti.cast(key == t_key, ti.i32) & ti.cast(idx == t_idx, ti.i32)):
-                        if emitted < k:
-                            if ti.static(emit_rows):
+        # 4. rows only: emit every candidate up to (t_key, t_idx)
+        if ti.static(emit_rows):
+            emitted = 0
+            bound = ti.bit_cast(t_key, ti.f32)
+            for t in range(n_cells):
+                d = _cube_offset(t, span, ring)
+                target = c + d
+                rg = ti.math.ivec2(0, 0)
+                if brute or _box_distance(u, c, d, cell_size) <= bound:
+                    rg = _cell_range(target, brute, n, bstart, mask)
+                for j in range(rg[0], rg[1]):
+                    if _is_member(j, target, brute, qi, order, scell):
+                        dist = _distance(j, q, sxyz)
+                        key = ti.bit_cast(dist, ti.i32)
+                        idx = order[j]
+                        if _pair_less(key, idx, t_key, t_idx) | (ti.cast(key == t_key, ti.i32) & ti.cast(idx == t_idx, ti.i32)):
+                            if emitted < k:
                                 out_idx[qi, emitted] = idx
                                 out_dist[qi, emitted] = dist
-                            else:
-                                dist_sum += dist
-                        emitted += 1
+                            emitted += 1
         if ti.static(emit_rows):
             # heap sort of the row in place (global memory): ascending (distance, index)
-            m = ti.min(emitted, k)
+            m = k
             start = m // 2 - 1
             end = m - 1
             while end > 0:
@@ -457,9 +534,10 @@ def _run_scan(grid: Grid, k: int, out_idx, out_dist, out_mean, emit_rows: bool, 
 
 
 def default_points_per_cell(k: int) -> float:
-    """Cells of about k/2 points on a surface: the 3x3 cells around a query then hold its k
-    nearest in most cases, with few wasted candidates."""
-    return max(4.0, k / 2.0)
+    """Cells of about k/2 points on a surface for small k (the 3x3 cells around a query then
+    hold its k nearest in most cases); finer cells for large k, where the passes skip cells
+    whose box lies beyond the current bound, so fewer wasted candidates are scanned."""
+    return max(4.0, k / 2.0) if k <= SMALL_K else max(16.0, k / PPC_DIV)
 
 
 def knn(xyz, k: int, *, grid: Grid = None, cell_size: float = None):
@@ -528,24 +606,50 @@ def _radius_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.n
                     d2 = p.dot(p)
                     if d2 <= r2:
                         if ti.static(fill):
-                            out_idx[base + m] = order[j]
-                            out_dist[base + m] = ti.sqrt(d2)
+                            # never past the row the count pass sized: a backend may round the
+                            # two compilations differently at the sphere's boundary
+                            if m < count[qi]:
+                                out_idx[base + m] = order[j]
+                                out_dist[base + m] = ti.sqrt(d2)
                         m += 1
         if ti.static(fill):
-            # insertion sort of the row by (distance, index): rows are short
-            for a in range(base + 1, base + m):
-                tk = out_dist[a]
-                tx = out_idx[a]
-                b = a
-                while b > base:
-                    if _pair_less(ti.bit_cast(tk, ti.i32), tx, ti.bit_cast(out_dist[b - 1], ti.i32), out_idx[b - 1]):
-                        out_dist[b] = out_dist[b - 1]
-                        out_idx[b] = out_idx[b - 1]
-                        b -= 1
+            # heap sort of the row in place by (distance, index)
+            m = ti.min(m, count[qi])
+            heap_start = m // 2 - 1
+            end = m - 1
+            while end > 0:
+                pos = 0
+                if heap_start >= 0:
+                    pos = heap_start
+                    heap_start -= 1
+                else:
+                    tk = out_dist[base]
+                    tx = out_idx[base]
+                    out_dist[base] = out_dist[base + end]
+                    out_idx[base] = out_idx[base + end]
+                    out_dist[base + end] = tk
+                    out_idx[base + end] = tx
+                    end -= 1
+                while True:
+                    child = 2 * pos + 1
+                    if child > end:
+                        break
+                    sibling = ti.min(child + 1, end)
+                    if child + 1 <= end:
+                        if _pair_less(ti.bit_cast(out_dist[base + child], ti.i32), out_idx[base + child],
+                                      ti.bit_cast(out_dist[base + sibling], ti.i32), out_idx[base + sibling]):
+                            child = sibling
+                    if _pair_less(ti.bit_cast(out_dist[base + pos], ti.i32), out_idx[base + pos],
+                                  ti.bit_cast(out_dist[base + child], ti.i32), out_idx[base + child]):
+                        tk = out_dist[base + pos]
+                        tx = out_idx[base + pos]
+                        out_dist[base + pos] = out_dist[base + child]
+                        out_idx[base + pos] = out_idx[base + child]
+                        out_dist[base + child] = tk
+                        out_idx[base + child] = tx
+                        pos = child
                     else:
                         break
-                out_dist[b] = tk
-                out_idx[b] = tx
         else:
             count[qi] = m
 
@@ -553,7 +657,7 @@ def _radius_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.n
 @ti.kernel
 def _clip_counts(offsets: ti.types.ndarray(dtype=ti.i32, ndim=1), limit: ti.i32,
                  count: ti.types.ndarray(dtype=ti.i32, ndim=1)):
-    for i in range(count.shape[0]):
+    for i in range(count.shape[0] - 1):
         count[i] = ti.min(offsets[i + 1] - offsets[i], limit)
 
 

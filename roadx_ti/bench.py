@@ -51,6 +51,8 @@ STAGES = ("voxel_hash", "knn", "uniform_downsample", "voxel_downsample", "sor", 
           "grid_min", "csf", "label_propagation", "road_pipeline", "roof_pipeline")
 ANCHORS_BACKEND = "cpu"          # anchors are CPU libraries; their rows carry this backend
 _ANCHORS_WORKER = "anchors"      # the pseudo-backend of the worker that runs them (no Taichi)
+_UNAVAILABLE = "backend not available: "
+SLOW_ANCHOR_BUDGETS = 5   # an anchor call longer than 5 repeat budgets is timed once (its warm-up)
 FULL_SIZES = (1_000_000, 4_000_000, 16_000_000)
 QUICK_SIZES = (50_000, 200_000)
 
@@ -81,6 +83,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="Taichi backends (default: cpu,vulkan,cuda; unavailable ones are reported missing)")
     p.add_argument("--sizes", type=lambda s: [_count(v) for v in _list(s)], metavar="N[,N..]",
                    help="scene sizes in points, e.g. 1M,4M,16M (the default)")
+    p.add_argument("--anchor-sizes", type=lambda s: [_count(v) for v in _list(s)], metavar="N[,N..]",
+                   help="run the anchors at these sizes only (default: every size), e.g. 1M,4M to spare "
+                        "minutes of single-threaded reference code at 16M")
     p.add_argument("--stages", type=_list, metavar="S[,S..]", help=f"stages (default: all): {', '.join(STAGES)}")
     p.add_argument("--impls", type=_list, metavar="I[,I..]",
                    help="only these implementations, e.g. roadx_ti or roadx_ti,open3d (default: all)")
@@ -145,7 +150,7 @@ def _plan(args) -> dict | str:
     budget = args.budget if args.budget is not None else (0.3 if quick else 4.0)
     return {
         "quick": quick, "sizes": sorted(set(sizes)), "stages": stages, "backends": backends,
-        "impls": args.impls, "cache": cache, "threads": args.threads, "seed": args.seed,
+        "impls": args.impls, "anchor_sizes": args.anchor_sizes, "cache": cache, "threads": args.threads, "seed": args.seed,
         "budget": budget, "min_repeats": 2 if quick else 3, "max_repeats": 5 if quick else 9,
         "timeout": args.timeout, "out": args.out or DEFAULT_OUT,
         "command": _command_line(args, sizes, stages, backends),
@@ -158,7 +163,9 @@ def _command_line(args, sizes, stages, backends) -> str:
     parts += ["--backends", ",".join(backends), "--sizes", ",".join(_fmt_points(n) for n in sizes)]
     if args.stages:
         parts += ["--stages", ",".join(stages)]
-    for flag, value in (("--impls", ",".join(args.impls or [])), ("--cache", args.cache),
+    anchor_sizes = ",".join(_fmt_points(n) for n in args.anchor_sizes or [])
+    for flag, value in (("--impls", ",".join(args.impls or [])), ("--anchor-sizes", anchor_sizes),
+                        ("--cache", args.cache),
                         ("--threads", args.threads), ("--budget", args.budget),
                         ("--seed", args.seed if args.seed else None)):
         if value:
@@ -208,6 +215,7 @@ def execute(plan: dict) -> dict:
     cache_dir = tmp / "ticache" if plan["cache"] == "fresh" else None
     rows: list[dict] = []
     plan["workers"] = []
+    unavailable: dict[str, str] = {}   # backend -> why (found by its first worker; not retried)
     try:
         for size_index, points in enumerate(plan["sizes"]):
             for backend in plan["backends"]:
@@ -217,16 +225,25 @@ def execute(plan: dict) -> dict:
                                                                         quick=plan["quick"])]
                 if not jobs:
                     continue
+                if backend in unavailable:
+                    rows += [_blank_row(j, backend) | {"status": "missing", "error": unavailable[backend]}
+                             for j in jobs]
+                    continue
                 cache_state = "default" if cache_dir is None else ("cold" if size_index == 0 else "warm")
                 got = _run_worker(plan, backend, jobs, tmp, cache_dir, extra={"offline_cache": cache_state})
                 rows += got
+                if got and all((r["error"] or "").startswith(_UNAVAILABLE) for r in got):
+                    unavailable[backend] = got[0]["error"]
+                    continue
                 if cache_dir is not None and size_index == 0:
                     # the offline-cache effect: a fresh process, same size, cache now warm
                     cached = _run_worker(plan, backend, jobs, tmp, cache_dir, first_call_only=True)
                     by_key = {_key(r): r for r in cached if r["status"] == "ok"}
                     for r in got:
-                        if _key(r) in by_key:
+                        if r["status"] == "ok" and _key(r) in by_key:
                             r["first_call_cached_s"] = by_key[_key(r)]["first_call_s"]
+            if plan["anchor_sizes"] and points not in plan["anchor_sizes"]:
+                continue
             anchor_jobs = [j for s in plan["stages"] for j in _jobs(s, points, plan["impls"], anchors=True,
                                                                           quick=plan["quick"])]
             if anchor_jobs:
@@ -361,7 +378,7 @@ def worker_main(spec_path: str) -> int:
         except Exception as exc:  # BackendError, or Taichi's own
             for job in spec["jobs"]:
                 emit(_blank_row(job, row_backend) | {"status": "missing",
-                                                      "error": f"backend {backend} not available: {exc}"[:300]})
+                                                      "error": f"{_UNAVAILABLE}{backend}: {exc}"[:300]})
             return 0
         threads = _taichi_threads(backend)
     scenes: dict = {}
@@ -382,7 +399,8 @@ def worker_main(spec_path: str) -> int:
             row |= {"status": "missing", "error": f"{type(exc).__name__}: {exc}"[:300]}
         except Exception as exc:  # reported, never dropped
             tb = traceback.extract_tb(exc.__traceback__)[-1]
-            text = " ".join(str(exc).split())   # Taichi's compile errors span many lines
+            # Taichi's compile errors span many lines and underline code with carets
+            text = " ".join(w for w in str(exc).split() if w.strip("^~"))
             if len(text) > 320:
                 text = "..." + text[-320:]
             row |= {"status": "error", "error": f"{type(exc).__name__}: {text} ({Path(tb.filename).name}:{tb.lineno})"}
@@ -411,7 +429,12 @@ def _measure(job, scene, spec, backend) -> dict:
         return {"first_call_s": round(first, 5), "status": "ok"}
     times: list[float] = []
     budget, lo, hi = spec["budget"], spec["min_repeats"], spec["max_repeats"]
-    while True:
+    # an anchor compiles nothing: when one call costs this much, its warm-up is the sample
+    warmup_is_sample = job["impl"] != "roadx_ti" and first >= SLOW_ANCHOR_BUDGETS * budget
+    done = warmup_is_sample
+    if done:
+        times.append(first)
+    while not done:
         t0 = time.perf_counter()
         result = call()
         sync()
@@ -419,13 +442,13 @@ def _measure(job, scene, spec, backend) -> dict:
         del result
         total = sum(times)
         # stop: enough repeats and budget spent, or the cap, or a slow case past twice its budget
-        if len(times) >= hi or (len(times) >= lo and total >= budget) or total >= 2 * budget:
-            break
+        done = len(times) >= hi or (len(times) >= lo and total >= budget) or total >= 2 * budget
     peak_kb = _proc_status_kb("VmHWM")
     median = statistics.median(times)
     n = job["points"]
     row = {"median_s": round(median, 6), "min_s": round(min(times), 6), "repeats": len(times),
            "times_s": [round(t, 6) for t in times], "first_call_s": round(first, 5),
+           "warmup_is_sample": warmup_is_sample,
            "mpts_per_s": round(n / median / 1e6, 4) if median > 0 else None,
            "peak_rss_mb": round(peak_kb / 1024, 1) if peak_kb else None,
            "base_rss_mb": round(base_kb / 1024, 1) if base_kb else None,
@@ -688,15 +711,18 @@ def render_markdown(runs: list[dict]) -> str:
     targets = _targets()
     lines = ["# Benchmark results", "",
              "Generated by `python -m roadx_ti bench` from the run file(s) listed below; do not edit by hand "
-             "(regenerate with `python -m roadx_ti bench --render benchmarks/out/bench-*.json`).", "",
+             "(regenerate with `python -m roadx_ti bench --render RUN.json [RUN.json ..]`).", "",
              "Throughput is points per second of input (Mpts/s) from the **median** of the timed repeats after a "
              "warm-up call; **ratio** = anchor median / roadx_ti median (a speed-up: above 1, roadx_ti is "
              "faster). The machine is shared, so only medians and ratios are shown. `first call` is the first "
              "call in a fresh process (kernel compile, or offline-cache load, plus one run); `cached` is the "
-             "same first call in a new process once the offline cache is warm. `peak MB` is the process RSS "
-             "high-water mark during the timed calls, `B/pt` its growth over the RSS before them per input "
-             "point. Anchors are timed on the same points and parameters; Open3D clouds are built outside "
-             "the timing, roadx_ti's numpy-to-Taichi copies are inside it.", ""]
+             "same first call in a new process once the offline cache is warm. Stages run in the order of the "
+             "tables, one process per backend and size, so a kernel shared by two stages compiles in the "
+             "first. `peak MB` is the process RSS high-water mark during the timed calls, `B/pt` its growth "
+             "over the RSS before them per input point. Anchors are timed on the same points and parameters; "
+             "Open3D clouds are built outside the timing, roadx_ti's numpy-to-Taichi copies are inside it. "
+             f"An anchor whose warm-up call takes over {SLOW_ANCHOR_BUDGETS} repeat budgets is timed by that "
+             "call alone (it compiles nothing).", ""]
     for run in runs:
         m = run["meta"]
         mach = m["machine"]
@@ -737,7 +763,8 @@ def _summary_section(rows, targets):
         return ["## Summary", "", "No roadx_ti row completed.", ""]
     sizes = sorted({r["points"] for r in mine})
     backends = [b for b in ("cpu", "vulkan", "cuda", "metal") if any(r["backend"] == b for r in mine)]
-    cols = [(p, b) for p in sizes for b in backends]
+    present = {(r["points"], r["backend"]) for r in mine}
+    cols = [(p, b) for p in sizes for b in backends if (p, b) in present]
     lines = ["## Summary: roadx_ti Mpts/s (ratio to the anchors)", "",
              "| stage | " + " | ".join(f"{_fmt_points(p)} {b}" for p, b in cols) + " |",
              "|---|" + "---|" * len(cols)]

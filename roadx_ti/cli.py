@@ -41,6 +41,11 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. --set stages.sor.k=30 (repeatable)")
     r.add_argument("--quiet", action="store_true", help="only warnings and errors")
+    r.add_argument("--workers", type=int, metavar="N", help="tiles on a local Dask cluster of N processes")
+    r.add_argument("--scheduler", metavar="ADDRESS", help="tiles on an existing Dask scheduler, tcp://HOST:PORT")
+    r.add_argument("--tile-size", type=float, metavar="M", help="core tile edge in metres (inf: untiled)")
+    r.add_argument("--buffer", type=float, metavar="M", help="tile buffer in metres")
+    r.add_argument("--output-mode", choices=["merged", "per-file"], help="tiled runs: merged or per-file output")
 
     e = sub.add_parser("eval", help="score a prediction against truth (matched by point order)")
     e.add_argument("--pred", required=True, metavar="PRED")
@@ -56,6 +61,10 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--points", required=True, type=_count)
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("-o", "--output", required=True)
+    b = sub.add_parser("bench", help="benchmarks: kernels and pipelines against their anchors")
+    from roadx_ti import bench
+    bench.add_arguments(b)
+
     a = sub.add_parser("accuracy", help="accuracy report of both pipelines on real and synthetic data")
     from roadx_ti import accuracy
     accuracy.add_arguments(a)
@@ -101,13 +110,14 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return EXIT_USAGE
     _setup_logging(getattr(args, "quiet", False))
+    from roadx_ti.backend import BackendError
     from roadx_ti.config import ConfigError
     from roadx_ti.io import InputError
 
     try:
         return {"run": cmd_run, "eval": cmd_eval, "info": cmd_info, "synth": cmd_synth,
-                "accuracy": cmd_accuracy}[args.command](args)
-    except (ConfigError, UsageError) as exc:
+                "accuracy": cmd_accuracy, "bench": cmd_bench}[args.command](args)
+    except (ConfigError, UsageError, BackendError) as exc:   # BackendError: --backend not on this machine
         print(f"roadx_ti: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except (InputError, DataError) as exc:
@@ -130,6 +140,12 @@ def cmd_run(args) -> int:
     from roadx_ti.stages.base import StageContext
 
     overrides = list(args.set)
+    for flag, key in (("workers", "executor.workers"), ("scheduler", "executor.scheduler"),
+                      ("tile_size", "tiling.tile_size"), ("buffer", "tiling.buffer"),
+                      ("output_mode", "output.mode")):
+        value = getattr(args, flag)
+        if value is not None:
+            overrides.append(f"{key}={value}")
     cfg = config.load(args.config, overrides)
     if args.input:
         cfg.input = config.InputConfig(paths=list(args.input))
@@ -139,12 +155,12 @@ def cmd_run(args) -> int:
         cfg.backend = args.backend
     if not cfg.input.paths and cfg.input.synthetic is None:
         raise config.ConfigError("config error: input: give input.paths, input.synthetic or --input PATH")
-    if len(cfg.input.paths) > 1:
-        raise UsageError("several input files are not supported by `run` yet: merge them first (e.g. pdal merge)")
     for p in cfg.input.paths:
-        if not Path(p).is_file():
+        if not Path(p).exists():
             raise config.ConfigError(f"config error: input.paths = {p!r}: no such file")
     out = Path(cfg.output.path)
+    if cfg.tiled:
+        return _run_tiled(cfg, out, args)
     _prepare_output(out, cfg.input.paths)
     stage_specs = cfg.stage_list() or pipelines.default_stage_specs(cfg.pipeline)
 
@@ -223,6 +239,35 @@ def _prepare_output(out: Path, inputs) -> None:
     io.check_output_path(out, inputs)
 
 
+def _run_tiled(cfg, out: Path, args) -> int:
+    from roadx_ti import config, io, tiling
+
+    if not cfg.input.paths:
+        raise config.ConfigError("config error: input: tiled runs read files; give input.paths or --input")
+    if cfg.output.mode == "merged":
+        _make_parent(out)
+        io.check_output_path(out, [f.path for f in tiling.catalog(cfg.input.paths)])
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+    try:
+        summary = tiling.run_catalog(cfg, cfg.input.paths, out, workers=cfg.executor.workers,
+                                     scheduler=cfg.executor.scheduler, tile_size=cfg.tiling.tile_size,
+                                     buffer=cfg.tiling.buffer, output_mode=cfg.output.mode,
+                                     progress=not args.quiet, log=log)
+    except tiling.TileError as exc:
+        raise DataError(str(exc)) from None
+    except ValueError as exc:
+        if isinstance(exc, io.InputError):
+            raise
+        raise UsageError(str(exc)) from None
+    config_path = (out / "config.yaml") if cfg.output.mode == "per-file" else _output_paths(out)["config"]
+    with io.atomic_output(config_path) as tmp:
+        Path(tmp).write_text(config.dump(cfg))
+    log.info("tiled run: %d tiles, %d points written", len(summary.get("tiles", [])),
+             summary.get("points_written", 0))
+    return EXIT_OK
+
+
 def _make_parent(out: Path) -> None:
     """Create the output's folder, as users of PDAL and friends expect; failures are data errors."""
     try:
@@ -279,6 +324,12 @@ def cmd_accuracy(args) -> int:
     from roadx_ti import accuracy
 
     return accuracy.main(args)
+
+
+def cmd_bench(args) -> int:
+    from roadx_ti import bench
+
+    return bench.main(args)
 
 
 # ------------------------------------------------------------------------------------- synth

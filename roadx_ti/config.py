@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any, Literal, Union
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from roadx_ti import backend as _backend
 from roadx_ti.stages import REGISTRY, stage_class
@@ -42,6 +42,23 @@ class OutputConfig(_Strict):
         "all", description="all: every input point in input order (label transfer for points "
         "skipped by downsampling); processed: only the points that reached the last stage")
     report_png: bool = Field(True, description="write a top-view PNG beside the output")
+    mode: Literal["merged", "per-file"] = Field(
+        "merged", description="tiled runs over several files: one merged output in input order, or "
+        "one output per input file in the output folder")
+
+
+class TilingConfig(_Strict):
+    enabled: bool = Field(False, description="run in tiles with buffers even for one input file")
+    tile_size: float | None = Field(None, gt=0, description="core tile edge (m); null: about 2 M points "
+                                    "per tile at the data's density; .inf: untiled")
+    buffer: float | None = Field(None, ge=0, description="buffer on every side of a tile (m); null: the "
+                                 "largest spatial reach of the stages")
+
+
+class ExecutorConfig(_Strict):
+    workers: int | None = Field(None, ge=1, description="start a local Dask cluster of this many processes")
+    scheduler: str | None = Field(None, pattern=r"^(tcp|tls|inproc|ucx)://", description="address of an "
+                                  "existing Dask scheduler, e.g. tcp://10.0.0.5:8786")
 
 
 class EvaluateConfig(_Strict):
@@ -61,6 +78,8 @@ class RunConfig(_Strict):
     threads: int | None = Field(None, ge=1, description="CPU threads for Taichi (default: all)")
     seed: int = Field(0, ge=0, description="seed of every random choice (RANSAC hypotheses)")
     evaluate: EvaluateConfig = Field(default_factory=EvaluateConfig)
+    tiling: TilingConfig = Field(default_factory=TilingConfig)
+    executor: ExecutorConfig = Field(default_factory=ExecutorConfig)
     stages: list[dict[str, Any]] = Field(default_factory=list)
 
     @field_validator("stages")
@@ -87,6 +106,19 @@ class RunConfig(_Strict):
             except TypeError:
                 raise ConfigError(f"stages[{i}].{name}: options must be a mapping, got {opts!r}") from None
         return out
+
+    @model_validator(mode="after")
+    def _one_executor(self):
+        if self.executor.workers is not None and self.executor.scheduler:
+            raise ValueError("executor: give workers (a local cluster) or scheduler (an existing one), not both")
+        return self
+
+    @property
+    def tiled(self) -> bool:
+        """Whether the run goes through the tiling engine (several inputs, a folder, or asked)."""
+        return (self.tiling.enabled or self.tiling.tile_size is not None or len(self.input.paths) > 1
+                or any(Path(p).is_dir() for p in self.input.paths)
+                or self.executor.workers is not None or bool(self.executor.scheduler))
 
     @property
     def truth_classes(self) -> list[int]:

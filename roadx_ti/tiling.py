@@ -124,6 +124,12 @@ def default_tile_size(files: list[CatalogFile], target_points: int = TARGET_TILE
     return TILE_SIZE_STEP * math.ceil(math.sqrt(target_points / density) / TILE_SIZE_STEP)
 
 
+def cells(x_edges, y_edges, x, y) -> tuple[np.ndarray, np.ndarray]:
+    """(col, row) of the core cells holding world points x, y: x_edges[col] <= x < x_edges[col+1]
+    (-1 or len(edges)-1 outside the grid). The one test of core membership, used everywhere."""
+    return (np.searchsorted(x_edges, x, side="right") - 1, np.searchsorted(y_edges, y, side="right") - 1)
+
+
 @dataclass(frozen=True)
 class Tile:
     index: int
@@ -146,9 +152,7 @@ class TilePlan:
     tile_of_cell: np.ndarray  # (rows, cols) int32: tile index, -1 where no file reaches
 
     def cells(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(col, row) of world points; -1 or len(edges)-1 outside the grid."""
-        return (np.searchsorted(self.x_edges, x, side="right") - 1,
-                np.searchsorted(self.y_edges, y, side="right") - 1)
+        return cells(self.x_edges, self.y_edges, x, y)
 
     def tile_index(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Index of the tile whose core holds each point, -1 where none does."""
@@ -329,8 +333,7 @@ def run_tile(job: TileJob) -> TileResult:
     result.stages = [{k: r[k] for k in ("stage", "points_in", "points_out", "seconds")} for r in labels.stages]
     n = cloud.n
     del cloud
-    col = np.searchsorted(job.plan_x_edges, x, side="right") - 1
-    row = np.searchsorted(job.plan_y_edges, y, side="right") - 1
+    col, row = cells(job.plan_x_edges, job.plan_y_edges, x, y)
     core = (col == tile.col) & (row == tile.row)
     sizes = np.cumsum([0] + counts)
     for k, lo, hi in zip(owners, sizes[:-1], sizes[1:]):
@@ -368,6 +371,8 @@ def make_jobs(plan: TilePlan, files: list[CatalogFile], stage_specs, *, backend:
 
 def _failure(tile: Tile, exc: BaseException, attempts: int) -> str:
     text = " ".join(str(exc).split()) or type(exc).__name__
+    if len(text) > 400:          # e.g. Taichi compile errors quote whole functions
+        text = text[:400] + " ..."
     core = ", ".join(f"{v:.2f}" for v in tile.core)
     return (f"tile ({tile.col}, {tile.row}) with core bounds ({core}) failed after {attempts} "
             f"attempt(s): {type(exc).__name__}: {text}; no output was written")
@@ -782,8 +787,8 @@ DISTANCE_BINS = (0.0, 1.0, 2.0, 5.0, 10.0, 20.0, math.inf)
 
 def _border_distance(x_edges, y_edges, x, y) -> np.ndarray:
     x_edges, y_edges = np.asarray(x_edges, np.float64), np.asarray(y_edges, np.float64)
-    col = np.clip(np.searchsorted(x_edges, x, side="right") - 1, 0, len(x_edges) - 2)
-    row = np.clip(np.searchsorted(y_edges, y, side="right") - 1, 0, len(y_edges) - 2)
+    col, row = cells(x_edges, y_edges, x, y)
+    col, row = np.clip(col, 0, len(x_edges) - 2), np.clip(row, 0, len(y_edges) - 2)
     return np.minimum.reduce([x - x_edges[col], x_edges[col + 1] - x, y - y_edges[row], y_edges[row + 1] - y])
 
 
@@ -821,11 +826,10 @@ def compare_outputs(tiled_summary: dict, tiled_output, reference_output, *, summ
     crossing, whole = 0, 0
     if (seg_b >= 0).any():
         # reference segments spread over several cores: are they one segment in the tiled run?
-        cells = np.column_stack([np.searchsorted(tiling["x_edges"], xb, side="right"),
-                                 np.searchsorted(tiling["y_edges"], yb, side="right")])
+        cell = np.column_stack(cells(tiling["x_edges"], tiling["y_edges"], xb, yb))
         for s in np.unique(seg_b[seg_b >= 0]):
             sel = seg_b == s
-            if len(np.unique(cells[sel], axis=0)) > 1:
+            if len(np.unique(cell[sel], axis=0)) > 1:
                 crossing += 1
                 ids, counts = np.unique(seg_a[sel], return_counts=True)
                 whole += int(counts.max() >= 0.99 * sel.sum() and ids[counts.argmax()] >= 0)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -56,9 +57,13 @@ def start_cli(*args, cwd=None) -> subprocess.Popen:
                             text=True, cwd=cwd, env=cli_env())
 
 
+# Taichi's own stderr lines: its banner and its C++ log ('[W 11/21/26 23:36:59.570 22597] ...')
+_TAICHI_LINE = re.compile(r"^\[(Taichi\]|[DIWEC] \d\d/\d\d/\d\d )")
+
+
 def message_lines(stderr: str) -> list[str]:
-    """stderr without Taichi's own start-up banner lines ('[Taichi] ...')."""
-    return [line for line in stderr.splitlines() if line.strip() and not line.startswith("[Taichi]")]
+    """stderr without Taichi's own lines (start-up banner, C++ log)."""
+    return [line for line in stderr.splitlines() if line.strip() and not _TAICHI_LINE.match(line)]
 
 
 def error_line(proc: subprocess.CompletedProcess, code: int) -> str:

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import os
 import struct
+import sys
+import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,6 +40,7 @@ class Case:
     previous: bytes | None = None   # an output that existed before the run and must survive
     check: Callable | None = None   # graceful results: check(case) on the written output
     hashes: dict = field(default_factory=dict)
+    seconds: float = 0.0            # wall time of the CLI run (for tuning the suite's speed)
 
 
 def _run(config, folder: Path, *inputs, output=None, extra=(), code=1, **kw) -> Case:
@@ -339,27 +342,48 @@ def case_text_with_two_columns(d):
     return _tiny(d, d / "in" / "xy.txt", message="expected X Y Z")
 
 
+def case_backend_not_on_this_machine(d):
+    """--backend metal off macOS (cuda on macOS: neither can exist there): exit 2, one line
+    naming the backend."""
+    name = "cuda" if sys.platform == "darwin" else "metal"
+    src = _ground_laz(d)
+    return _tiny(d, src, extra=["--backend", name], code=2, message=f"backend '{name}' is not available")
+
+
 CASES = {name[len("case_"):]: fn for name, fn in sorted(globals().items()) if name.startswith("case_")}
 
 
 @pytest.fixture(scope="module")
-def catalogue(tmp_path_factory):
-    """{case name: (Case, CompletedProcess)}: every case built, then all run concurrently."""
+def catalogue(request, tmp_path_factory):
+    """{case name: (Case, CompletedProcess)}: the selected cases built, then run concurrently."""
+    selected = {item.callspec.params["name"] for item in request.session.items
+                if item.module is request.module and "name" in getattr(getattr(item, "callspec", None),
+                                                                       "params", {})}
     cases = {}
     for name, build in CASES.items():
+        if name not in selected:
+            continue
         folder = tmp_path_factory.mktemp(name)
         (folder / "in").mkdir()
         case = build(folder)
         case.hashes = {p.resolve(): sha256(p) for p in (folder / "in").rglob("*") if p.is_file()}
         cases[name] = case
+    def timed_run(case):
+        t0 = time.perf_counter()
+        proc = run_cli(*case.args)
+        case.seconds = time.perf_counter() - t0
+        return proc
+
     workers = min(4, max(2, os.cpu_count() or 2))
     with ThreadPoolExecutor(workers) as pool:
-        procs = dict(zip(cases, pool.map(lambda c: run_cli(*c.args), cases.values())))
+        procs = dict(zip(cases, pool.map(timed_run, cases.values())))
     return {name: (cases[name], procs[name]) for name in cases}
 
 
-def test_catalogue_size():
+def test_catalogue_size(catalogue):
     assert len(CASES) >= 20
+    slowest = sorted(((c.seconds, name) for name, (c, _) in catalogue.items()), reverse=True)[:8]
+    print("slowest catalogue runs:", ", ".join(f"{name} {s:.1f} s" for s, name in slowest))
 
 
 @pytest.mark.parametrize("name", list(CASES))

@@ -9,7 +9,7 @@ from roadx_ti.kernels.grid import build_grid
 
 def _clouds(small):
     rng = np.random.default_rng(7)
-    n = 1500 if small else 6000
+    n = 1500 if small else 4000
     uniform = rng.random((n, 3)) * [40, 30, 4]
     centres = rng.random((12, 3)) * 50
     clustered = centres[rng.integers(0, 12, n)] + rng.normal(0, 0.3, (n, 3))
@@ -45,7 +45,8 @@ def assert_knn_matches_kdtree(xyz, k, idx, dist):
     tol = 1e-5 * (1 + np.abs(xyz64).max())
     np.testing.assert_allclose(own.max(1), ref_sorted[:, -1], atol=tol)
     ties = 0
-    for i in range(n):
+    same = (np.sort(idx, 1) == np.sort(np.where(ref_i == np.arange(n)[:, None], -1, ref_i), 1)[:, -k:]).all(1)
+    for i in np.flatnonzero(~same):
         kth = ref_sorted[i, -1]
         ref_set = set(ref_i[i][(ref_i[i] != i) & (ref_d[i] < kth - tol)].tolist())
         got_set = set(idx[i][own[i] < kth - tol].tolist())
@@ -56,7 +57,7 @@ def assert_knn_matches_kdtree(xyz, k, idx, dist):
 
 
 @pytest.mark.parametrize("kind", ["uniform", "clustered", "duplicated", "lattice"])
-@pytest.mark.parametrize("k", [1, 16, 40, 200])
+@pytest.mark.parametrize("k", [1, 16, 100])
 def test_knn_matches_kdtree(ti_arch, kind, k):
     small = ti_arch != "cpu"
     xyz = _clouds(small)[kind].astype(np.float32)

@@ -1,0 +1,180 @@
+"""Tiles on dask.distributed: a LocalCluster of 2 worker processes, then a real `dask scheduler` with
+two `dask worker` processes on 127.0.0.1, give the labels of the in-process run; killing a worker
+mid-run still gives the complete, identical result (Dask reruns its tile on the other worker)."""
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import laspy
+import numpy as np
+import pytest
+
+from roadx_ti import config, tiling
+
+REPO = Path(__file__).resolve().parents[1]
+DASK = Path(sys.executable).with_name("dask")
+TILE = 25.0            # two of the six IGN tiles in 25 m tiles: 8 tiles, several per worker
+START_TIMEOUT = 90      # seconds for the scheduler and workers to come up
+RUN_TIMEOUT = 300       # seconds for one run
+
+WRAPPER = """\
+import json, sys
+from roadx_ti import config, tiling
+cfg = config.load(sys.argv[1], ["backend=cpu"])
+summary = tiling.run_catalog(cfg, sys.argv[2].split("|"), sys.argv[3], scheduler=sys.argv[4],
+                             tile_size=float(sys.argv[5]), progress=True)
+print(json.dumps({"executor": summary["executor"], "workers": [t["worker"] for t in summary["tiles"]]}))
+"""
+
+
+def inputs(shared_data) -> list[str]:
+    return sorted(str(p) for p in (shared_data / "tiles").glob("*.laz"))[:2]
+
+
+def ground_cfg():
+    return config.load(REPO / "configs" / "ground.yaml", ["backend=cpu"])
+
+
+def labels(path) -> tuple[np.ndarray, ...]:
+    las = laspy.read(path)
+    return (np.asarray(las.classification), np.asarray(las["roadx_label"]), np.asarray(las["segment_id"]),
+            np.asarray(las.points.array["X"]), np.asarray(las.points.array["Y"]))
+
+
+def assert_same(got, want):
+    for a, b in zip(got, want):
+        assert np.array_equal(a, b)
+
+
+@pytest.fixture(scope="module")
+def reference(shared_data, tmp_path_factory):
+    """The in-process tiled run every executor must reproduce exactly."""
+    out = tmp_path_factory.mktemp("ref") / "in_process.laz"
+    summary = tiling.run_catalog(ground_cfg(), inputs(shared_data), out, tile_size=TILE, progress=False)
+    assert summary["executor"] == "in-process"
+    return labels(out)
+
+
+def test_local_cluster_of_two_processes_gives_the_in_process_labels(reference, shared_data, tmp_path):
+    out = tmp_path / "local.laz"
+    summary = tiling.run_catalog(ground_cfg(), inputs(shared_data), out, tile_size=TILE, workers=2,
+                                 progress=False)
+    assert summary["executor"] == "local-cluster" and summary["workers"] == 2
+    assert_same(labels(out), reference)
+    pids = {t["worker"].rsplit(":", 1)[1] for t in summary["tiles"]}
+    assert str(os.getpid()) not in pids            # the tiles ran in the worker processes
+
+
+class DaskProcesses:
+    """`dask scheduler` and named `dask worker` processes (no nanny: a killed worker stays dead)
+    on 127.0.0.1 with free ports, stopped on exit."""
+
+    def __init__(self, folder: Path, n_workers: int):
+        self.folder, self.n_workers = folder, n_workers
+        self.scheduler_file = folder / "scheduler.json"
+        self.procs: dict[str, subprocess.Popen] = {}
+        self.logs = []
+
+    def _spawn(self, name, args):
+        log = open(self.folder / f"{name}.log", "w")
+        self.logs.append(log)
+        self.procs[name] = subprocess.Popen([str(DASK), *args], stdout=log, stderr=subprocess.STDOUT,
+                                            cwd=self.folder, start_new_session=True)
+
+    def __enter__(self):
+        from distributed import Client
+
+        self._spawn("scheduler", ["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                                  "--scheduler-file", str(self.scheduler_file)])
+        deadline = time.monotonic() + START_TIMEOUT
+        while not self.scheduler_file.exists():
+            if time.monotonic() > deadline or self.procs["scheduler"].poll() is not None:
+                self.__exit__(None, None, None)
+                pytest.fail("dask scheduler did not start: " + (self.folder / "scheduler.log").read_text()[-2000:])
+            time.sleep(0.2)
+        for i in range(self.n_workers):
+            self._spawn(f"w{i}", ["worker", "--scheduler-file", str(self.scheduler_file), "--host", "127.0.0.1",
+                                  "--nthreads", "1", "--no-nanny", "--no-dashboard", "--name", f"w{i}",
+                                  "--death-timeout", "60", "--local-directory", str(self.folder)])
+        self.client = Client(scheduler_file=str(self.scheduler_file), timeout=30)
+        self.client.wait_for_workers(self.n_workers, timeout=START_TIMEOUT)
+        self.address = self.client.scheduler.address
+        assert self.address.startswith("tcp://127.0.0.1:")
+        return self
+
+    def worker_name(self, address: str) -> str:
+        return self.client.scheduler_info()["workers"][address]["name"]
+
+    def __exit__(self, *exc):
+        with contextlib.suppress(Exception):
+            self.client.close()
+        for name in sorted(self.procs, key=lambda n: n == "scheduler"):   # workers first
+            proc = self.procs[name]
+            if proc.poll() is None:
+                proc.terminate()
+        for proc in self.procs.values():
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait(timeout=10)
+        for log in self.logs:
+            log.close()
+
+
+def start_wrapper(tmp_path: Path, paths: list[str], out: Path, address: str) -> subprocess.Popen:
+    script = tmp_path / "run_scheduler.py"
+    script.write_text(WRAPPER)
+    return subprocess.Popen([sys.executable, str(script), str(REPO / "configs" / "ground.yaml"), "|".join(paths),
+                             str(out), address, str(TILE)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, cwd=tmp_path)
+
+
+def finish(proc: subprocess.Popen) -> dict:
+    try:
+        stdout, stderr = proc.communicate(timeout=RUN_TIMEOUT)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        stdout, stderr = proc.communicate()
+        pytest.fail(f"run did not finish in {RUN_TIMEOUT} s: {stderr[-2000:]}")
+    assert proc.returncode == 0, stderr[-3000:]
+    return json.loads(stdout.strip().splitlines()[-1])
+
+
+def test_existing_scheduler_with_two_worker_processes_gives_the_same_labels(reference, shared_data, tmp_path):
+    out = tmp_path / "scheduler.laz"
+    with DaskProcesses(tmp_path, 2) as dask_procs:
+        result = finish(start_wrapper(tmp_path, inputs(shared_data), out, dask_procs.address))
+    assert result["executor"] == "scheduler"
+    assert_same(labels(out), reference)
+
+
+def test_killing_a_worker_mid_run_still_gives_the_complete_identical_result(reference, shared_data, tmp_path):
+    out = tmp_path / "killed.laz"
+    with DaskProcesses(tmp_path, 2) as dask_procs:
+        run = start_wrapper(tmp_path, inputs(shared_data), out, dask_procs.address)
+        victim, deadline = None, time.monotonic() + RUN_TIMEOUT
+        busy_since = {}
+        while victim is None and time.monotonic() < deadline and run.poll() is None:
+            for address, keys in dask_procs.client.processing().items():
+                if any(str(k).startswith("roadx-tile-") for k in keys):
+                    busy_since.setdefault(address, time.monotonic())
+                    if time.monotonic() - busy_since[address] > 0.5:   # well inside a tile
+                        victim = dask_procs.worker_name(address)
+                        break
+                else:
+                    busy_since.pop(address, None)
+            time.sleep(0.05)
+        assert victim is not None, "no worker was seen running a tile"
+        os.kill(dask_procs.procs[victim].pid, signal.SIGKILL)
+        result = finish(run)
+        assert dask_procs.procs[victim].wait(timeout=10) == -signal.SIGKILL
+    assert result["executor"] == "scheduler"
+    assert_same(labels(out), reference)
