@@ -341,52 +341,56 @@ def _stop_test(band_max: ti.template(), state: ti.template(), iterations):
 
 
 @ti.func
-def _constraint_step(pos: ti.template(), movable: ti.template(), here, mp, q, single_move,
-                     double_move):
-    # one neighbour of the package's satisfyConstraintSelf; returns the particle's new height
-    mq = movable[q]
-    if mp == 1:
-        d = pos[q] - here
-        if mq == 1:
-            here += d * double_move
-            pos[q] -= d * double_move
-        else:
-            here += d * single_move
-    elif mq == 1:
-        pos[q] -= (pos[q] - here) * single_move
-    return here
+def _constraint_step(pos: ti.template(), movable: ti.template(), here, q, keep, take, push):
+    # one neighbour q of the package's satisfyConstraintSelf, without branches (movable and
+    # immovable particles mix unpredictably): the particle moves to here * keep + pq * take and
+    # q by (pq - here) * push; keep/take/push (index 0: q immovable, 1: q movable) are set per
+    # particle so that an immovable side stays exactly where it is (keep 1, take 0, push 0)
+    pq = pos[q]
+    mq = movable[q] == 1
+    pos[q] = pq - (pq - here) * ti.select(mq, push[1], push[0])
+    return here * ti.select(mq, keep[1], keep[0]) + pq * ti.select(mq, take[1], take[0])
 
 
 @ti.func
-def _constraint_pass(pos: ti.template(), movable: ti.template(), c, width, rows, single_move,
-                     double_move):
+def _constraint_pass(pos: ti.template(), movable: ti.template(), c, width, rows, moves):
     # the package's satisfyConstraintSelf: its 16 neighbours in its list order, each correction
     # seeing the previous ones (pos[c] stays in a register: no neighbour is c itself). Interior
     # particles, nearly all of them, take the unrolled path without bounds tests.
+    # moves: single move w1, double move w2, 1 - w1, 1 - w2. The particle's update
+    # here + (pq - here) * w is written here * (1 - w) + pq * w with (1 - w) passed in, so the
+    # compiler cannot refactor it: two dependent operations per neighbour instead of three on
+    # the chain of the particle's 16 updates, the critical path of the sweep.
     i = c % width
     j = c // width
     here = pos[c]
-    mp = movable[c]
+    keep = ti.math.vec2(1.0, 1.0)
+    take = ti.math.vec2(0.0, 0.0)
+    push = ti.math.vec2(0.0, moves[0])
+    if movable[c] == 1:
+        keep = ti.math.vec2(moves[2], moves[3])
+        take = ti.math.vec2(moves[0], moves[1])
+        push = ti.math.vec2(0.0, moves[1])
     if 2 <= i < width - 2 and 2 <= j < rows - 2:
         for k in ti.static(range(16)):
-            here = _constraint_step(pos, movable, here, mp,
+            here = _constraint_step(pos, movable, here,
                                     c + ti.static(_NEIGHBOUR_DJ[k]) * width + ti.static(_NEIGHBOUR_DI[k]),
-                                    single_move, double_move)
+                                    keep, take, push)
     else:
         for k in range(16):
             o = _neighbour_offset(k)
             if 0 <= i + o[0] < width and 0 <= j + o[1] < rows:
-                here = _constraint_step(pos, movable, here, mp, c + o[1] * width + o[0],
-                                        single_move, double_move)
+                here = _constraint_step(pos, movable, here, c + o[1] * width + o[0], keep, take,
+                                        push)
     pos[c] = here
 
 
 @ti.func
 def _sweep_band(b, pos: ti.template(), movable: ti.template(), band_list: ti.template(),
-                band_count: ti.template(), width, rows, band_rows, single_move, double_move):
+                band_count: ti.template(), width, rows, band_rows, moves):
     begin = b * band_rows * width
     for e in range(begin, begin + band_count[b]):
-        _constraint_pass(pos, movable, band_list[e], width, rows, single_move, double_move)
+        _constraint_pass(pos, movable, band_list[e], width, rows, moves)
 
 
 @ti.kernel
@@ -408,7 +412,7 @@ def _iterate(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
              band_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
              band_max: ti.types.ndarray(dtype=ti.i32, ndim=1),
              state: ti.types.ndarray(dtype=ti.i32, ndim=1), width: ti.i32, rows: ti.i32,
-             band_rows: ti.i32, acceleration: ti.f32, single_move: ti.f32, double_move: ti.f32,
+             band_rows: ti.i32, acceleration: ti.f32, moves: ti.math.vec4,
              iterations: ti.i32, bands: ti.i32):
     # one iteration of the package's loop, bands in parallel: Verlet step, constraint sweep
     # (every other band, they touch disjoint rows, then the others), largest displacement and
@@ -422,12 +426,12 @@ def _iterate(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
     for t in range((bands + 1) // 2):
         if state[0] == 0:
             _sweep_band(2 * t, pos, movable, band_list, band_count, width, rows, band_rows,
-                        single_move, double_move)
+                        moves)
     ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
     for t in range(bands // 2):
         if state[0] == 0:
             _sweep_band(2 * t + 1, pos, movable, band_list, band_count, width, rows, band_rows,
-                        single_move, double_move)
+                        moves)
     ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
     for b in range(bands):
         if state[0] == 0:
@@ -447,8 +451,8 @@ def _simulate_serial(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
                      band_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
                      band_max: ti.types.ndarray(dtype=ti.i32, ndim=1),
                      state: ti.types.ndarray(dtype=ti.i32, ndim=1), width: ti.i32, rows: ti.i32,
-                     band_rows: ti.i32, acceleration: ti.f32, single_move: ti.f32,
-                     double_move: ti.f32, iterations: ti.i32, refresh_every: ti.i32,
+                     band_rows: ti.i32, acceleration: ti.f32, moves: ti.math.vec4,
+                     iterations: ti.i32, refresh_every: ti.i32,
                      bands: ti.i32):
     # the same steps in the same order as _refresh_active + _iterate, all iterations in one
     # thread and one launch: for small cloths, where per-iteration launches and thread wake-ups
@@ -467,7 +471,7 @@ def _simulate_serial(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
                 half = (bands + 1) // 2
                 b = 2 * t if t < half else 2 * (t - half) + 1
                 _sweep_band(b, pos, movable, band_list, band_count, width, rows, band_rows,
-                            single_move, double_move)
+                            moves)
             for b in range(bands):
                 _collide_band(b, pos, old_pos, movable, height, band_list, band_count, band_max,
                               width, band_rows)
@@ -736,9 +740,10 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
     k = int(rigidness)
     single = _SINGLE_MOVE[k] if k <= 14 else 1.0
     double = _DOUBLE_MOVE[k] if k <= 14 else 0.5
+    moves = ti.math.vec4(single, double, 1.0 - single, 1.0 - double)
     if _serial_simulation(cells):
         _simulate_serial(pos, old_pos, movable, height, band_list, band_count, band_max, state,
-                         cols, rows, BAND_ROWS, acceleration, single, double, int(iterations),
+                         cols, rows, BAND_ROWS, acceleration, moves, int(iterations),
                          ITERATIONS_PER_CHECK, bands)
     done = 0
     while done < iterations and state.to_numpy()[0] == 0:
@@ -747,7 +752,7 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
             _refresh_active(movable, band_list, band_count, cols, rows, BAND_ROWS)
         for _ in range(batch):
             _iterate(pos, old_pos, movable, height, band_list, band_count, band_max, state, cols,
-                     rows, BAND_ROWS, acceleration, single, double, int(iterations), bands)
+                     rows, BAND_ROWS, acceleration, moves, int(iterations), bands)
         done += batch
         if state.to_numpy()[0] == 1:
             break

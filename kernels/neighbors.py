@@ -57,8 +57,20 @@ def _safe_radius(u: ti.math.vec3, c: ti.math.ivec3, ring: ti.i32, cell_size: ti.
 
 
 @ti.func
-def _cube_offset(t: ti.i32, span: ti.i32, ring: ti.i32) -> ti.math.ivec3:
-    return ti.math.ivec3(t % span - ring, (t // span) % span - ring, t // (span * span) - ring)
+def _next_offset(d: ti.math.ivec3, ring: ti.i32) -> ti.math.ivec3:
+    """Odometer step through the cube [-ring, ring]^3 (cyclic: n_cells steps from any start
+    visit every cell once), without the integer divisions of decoding a flat index."""
+    e = d
+    e[0] += 1
+    if e[0] > ring:
+        e[0] = -ring
+        e[1] += 1
+        if e[1] > ring:
+            e[1] = -ring
+            e[2] += 1
+            if e[2] > ring:
+                e[2] = -ring
+    return e
 
 
 @ti.func
@@ -127,11 +139,12 @@ def _knn_heap(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndar
             sr = _safe_radius(u, c, ring, cell_size)
             span = 2 * ring + 1
             n_cells = span * span * span
-            centre = n_cells // 2
             if brute:
                 n_cells = 1
+            d = ti.math.ivec3(0, 0, 0)          # own cell first: the heap fills with near points
             for t in range(n_cells):
-                d = _cube_offset((t + centre) % n_cells, span, ring)   # own cell first
+                if t > 0:
+                    d = _next_offset(d, ring)
                 target = c + d
                 rg = ti.math.ivec2(0, n)
                 if brute == 0:
@@ -294,8 +307,10 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
             count = 0
             below = 0
             dist_sum = 0.0
+            d = ti.math.ivec3(0, 0, 0)
             for t in range(n_cells):
-                d = _cube_offset(t, span, ring)
+                if t > 0:
+                    d = _next_offset(d, ring)
                 target = c + d
                 rg = ti.math.ivec2(0, 0)
                 if brute or _box_distance(u, c, d, cell_size) <= bound:
@@ -351,8 +366,10 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                     bound = _bins_top(lo, shift + _BIN_BITS)
                 else:
                     bound = ti.bit_cast(t_key, ti.f32)
+                d = ti.math.ivec3(0, 0, 0)
                 for t in range(n_cells):
-                    d = _cube_offset(t, span, ring)
+                    if t > 0:
+                        d = _next_offset(d, ring)
                     target = c + d
                     rg = ti.math.ivec2(0, 0)
                     if brute or _box_distance(u, c, d, cell_size) <= bound:
@@ -408,8 +425,10 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
         bound = ti.bit_cast(t_key, ti.f32)
         if phase == 0:
             bound = _bins_top(lo, shift)
+        d = ti.math.ivec3(0, 0, 0)
         for t in range(n_cells):
-            d = _cube_offset(t, span, ring)
+            if t > 0:
+                d = _next_offset(d, ring)
             target = c + d
             rg = ti.math.ivec2(0, 0)
             if brute or _box_distance(u, c, d, cell_size) <= bound:
@@ -444,8 +463,10 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
         if ti.static(emit_rows):
             emitted = 0
             bound = ti.bit_cast(t_key, ti.f32)
+            d = ti.math.ivec3(0, 0, 0)
             for t in range(n_cells):
-                d = _cube_offset(t, span, ring)
+                if t > 0:
+                    d = _next_offset(d, ring)
                 target = c + d
                 rg = ti.math.ivec2(0, 0)
                 if brute or _box_distance(u, c, d, cell_size) <= bound:
@@ -595,8 +616,10 @@ def _radius_scan(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.n
         base = 0
         if ti.static(fill):
             base = offsets[qi]
+        d = ti.math.ivec3(0, 0, 0)
         for t in range(span * span * span):
-            d = ti.math.ivec3(t % span - rings, (t // span) % span - rings, t // (span * span) - rings)
+            if t > 0:
+                d = _next_offset(d, rings)
             target = c + d
             h = cell_hash(target, mask)
             for j in range(bstart[h], bstart[h + 1]):

@@ -11,12 +11,12 @@ the ``ti_arch`` fixture, each against an independent reference written here in n
 Clouds come from a drawn (kind, size, seed, scale): numpy builds them, so hypothesis explores the
 shapes (duplicates, collinear, all identical, lattices, tiny n) rather than float bit patterns.
 """
-from __future__ import annotations
 
 from collections import deque
 
 import numpy as np
 import pytest
+import taichi as ti
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
@@ -176,7 +176,12 @@ def test_connected_components_match_flood_fill(ti_arch, n, k, seed, density, sha
 
 
 # ------------------------------------------------------------------------------- counting sort
-_P = (73856093, 19349663, 83492791)   # the classic spatial hash (grid.py)
+@ti.kernel
+def _bucket_of_cells(cell: ti.types.ndarray(dtype=ti.i32, ndim=2), mask: ti.i32,
+                     out: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    # the grid's own hash of a cell (its definition, not the sort, is taken from grid.py)
+    for i in out:
+        out[i] = grid.cell_hash(ti.math.ivec3(cell[i, 0], cell[i, 1], cell[i, 2]), mask)
 
 
 @SETTINGS
@@ -192,9 +197,10 @@ def test_build_grid_order_is_a_stable_sort_by_cell(ti_arch, cloud, cells_per_ext
     np.testing.assert_array_equal(np.asarray(g.origin, np.float32), origin)
     cell = np.floor((xyz - origin) * f32(g.inv_cell)).astype(np.int64)
     assert (cell >= 0).all()
-    u = cell.astype(np.uint32)
-    h = (u[:, 0] * np.uint32(_P[0])) ^ (u[:, 1] * np.uint32(_P[1])) ^ (u[:, 2] * np.uint32(_P[2]))
-    bucket = (h & np.uint32(g.table_mask)).astype(np.int64)
+    bucket_ti = ti.ndarray(ti.i32, (n,))
+    _bucket_of_cells(cell.astype(np.int32), g.table_mask, bucket_ti)
+    bucket = bucket_ti.to_numpy().astype(np.int64)
+    assert (bucket >= 0).all() and (bucket < g.table_size).all()
     # stable sort by the key (bucket, cell x, y, z), least significant first: equal keys (points of
     # one cell) keep their index order
     expected = np.arange(n)
