@@ -649,14 +649,25 @@ class ClothResult:
         return to_numpy(out)
 
 
-def _grid(keys: np.ndarray, resolution: float):
+def _grid(keys: np.ndarray, resolution: float, lattice_origin=None):
     lo = np.asarray([f32_from_key(k) for k in keys[:3]], np.float64)
     hi = -np.asarray([f32_from_key(k) for k in keys[3:]], np.float64)
-    cols = int(math.floor((hi[0] - lo[0]) / resolution)) + 2 * BUFFER_PARTICLES
-    rows = int(math.floor((hi[1] - lo[1]) / resolution)) + 2 * BUFFER_PARTICLES
-    x0 = float(np.float32(lo[0] - BUFFER_PARTICLES * resolution))
-    y0 = float(np.float32(lo[1] - BUFFER_PARTICLES * resolution))
-    return lo, hi, cols, rows, x0, y0
+    if lattice_origin is None:   # the package's layout: from the bounding box
+        cols = int(math.floor((hi[0] - lo[0]) / resolution)) + 2 * BUFFER_PARTICLES
+        rows = int(math.floor((hi[1] - lo[1]) / resolution)) + 2 * BUFFER_PARTICLES
+        x0 = float(np.float32(lo[0] - BUFFER_PARTICLES * resolution))
+        y0 = float(np.float32(lo[1] - BUFFER_PARTICLES * resolution))
+        return lo, hi, cols, rows, x0, y0
+    # particles on a fixed lattice (first particle snapped down onto it), so clouds cut from one
+    # survey (tiles) share their particles with the whole run
+    corner = []
+    counts = []
+    for axis in (0, 1):
+        start = lo[axis] - BUFFER_PARTICLES * resolution
+        start = lattice_origin[axis] + math.floor((start - lattice_origin[axis]) / resolution) * resolution
+        corner.append(float(np.float32(start)))
+        counts.append(int(math.ceil((hi[axis] - start) / resolution)) + BUFFER_PARTICLES)
+    return lo, hi, counts[0], counts[1], corner[0], corner[1]
 
 
 def f32_from_key(key) -> float:
@@ -674,11 +685,14 @@ def _fill_i32(shape, value):
 
 def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: float = 0.65,
         iterations: int = 500, class_threshold: float = 0.5,
-        slope_smooth: bool = False) -> ClothResult:
+        slope_smooth: bool = False, lattice_origin=None) -> ClothResult:
     """Cloth simulation filter of the (n, 3) float32 local points ``xyz`` (numpy or ndarray).
 
     Parameters mirror the `cloth-simulation-filter` package (``interations`` -> ``iterations``,
     ``bSloopSmooth`` -> ``slope_smooth``). Returns a ClothResult; ``ground`` is numpy either way.
+    ``lattice_origin`` (x, y), local coordinates: lay the particles on that point plus multiples of
+    the resolution instead of the package's bounding-box layout, so that tiles of one survey and
+    the whole survey share one lattice (None: the package's layout).
     """
     if not cloth_resolution > 0:
         raise ValueError("cloth_resolution must be > 0")
@@ -697,7 +711,7 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
 
     keys = _fill_i32((6,), _KEY_MAX)
     _bbox(points, keys, BBOX_CHUNK)
-    lo, hi, cols, rows, x0, y0 = _grid(keys.to_numpy(), res)
+    lo, hi, cols, rows, x0, y0 = _grid(keys.to_numpy(), res, lattice_origin)
     cells = cols * rows
     if cells >= 2**31 - 1:
         raise ValueError("cloth grid too large for 32-bit indexing; use a coarser resolution")

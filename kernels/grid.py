@@ -38,6 +38,11 @@ class Grid:
     sorted_xyz: object         # (n, 3) f32: xyz[order]
     sorted_cell: object        # (n, 3) i32: cell coordinates of xyz[order]
     extent: tuple              # float32 bounding-box size x, y, z
+    cell_start: object = None  # (cells+1,) i32: sorted positions where each occupied cell's run starts
+
+    @property
+    def n_cells(self) -> int:
+        return int(self.cell_start.shape[0]) - 1
 
     @property
     def table_size(self) -> int:
@@ -221,7 +226,32 @@ def build_grid(xyz, cell_size=None, *, points_per_cell: float = 8.0) -> Grid:
         _gather(order, pts, cell, sorted_xyz, sorted_cell)
     return Grid(n=n, cell_size=cell_size, inv_cell=float(inv_cell), origin=(ox, oy, oz),
                 table_mask=mask, order=order, bucket_start=start, sorted_xyz=sorted_xyz,
-                sorted_cell=sorted_cell, extent=tuple(float(v) for v in extent))
+                sorted_cell=sorted_cell, extent=tuple(float(v) for v in extent),
+                cell_start=_cell_runs(sorted_cell, n))
+
+
+def _cell_runs(sorted_cell, n: int):
+    """Start of every cell's run in the sorted order, plus n at the end."""
+    first = ndarray(ti.i32, (max(n, 1),))
+    if n:
+        _mark_runs(sorted_cell, first)
+    runs = mask_to_indices(first) if n else ndarray(ti.i32, (0,))
+    m = length(runs)
+    out = ndarray(ti.i32, (m + 1,))
+    if m:
+        _copy_append(runs, n, out)
+    else:
+        out.from_numpy(np.full(1, n, np.int32))
+    return out
+
+
+@ti.kernel
+def _copy_append(src: ti.types.ndarray(dtype=ti.i32, ndim=1), last: ti.i32, out: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in range(out.shape[0]):
+        v = last
+        if i < src.shape[0]:
+            v = src[i]
+        out[i] = v
 
 
 # ---------------------------------------------------------------- voxel downsampling
@@ -276,6 +306,17 @@ def _voxel_pick(offset: ti.types.ndarray(dtype=ti.f32, ndim=2), sorted_cell: ti.
 
 
 @ti.kernel
+def _mark_runs(sorted_cell: ti.types.ndarray(dtype=ti.i32, ndim=2), first: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for s in range(sorted_cell.shape[0]):
+        f = 1
+        if s > 0:
+            if sorted_cell[s - 1, 0] == sorted_cell[s, 0] and sorted_cell[s - 1, 1] == sorted_cell[s, 1] \
+                    and sorted_cell[s - 1, 2] == sorted_cell[s, 2]:
+                f = 0
+        first[s] = f
+
+
+@ti.kernel
 def _compact(mask: ti.types.ndarray(dtype=ti.i32, ndim=1), prefix: ti.types.ndarray(dtype=ti.i32, ndim=1),
              out: ti.types.ndarray(dtype=ti.i32, ndim=1)):
     for i in range(mask.shape[0]):
@@ -283,15 +324,23 @@ def _compact(mask: ti.types.ndarray(dtype=ti.i32, ndim=1), prefix: ti.types.ndar
             out[prefix[i]] = i
 
 
-def mask_to_indices(mask):
-    """Ascending indices of the non-zero entries of an int32 ndarray mask (stays on the device)."""
+def compact_mask(mask):
+    """(ascending indices of the non-zero entries of an int32 ndarray mask, their count); the
+    indices are None when there are none (Taichi has no empty ndarrays)."""
     n = length(mask)
     prefix = ndarray(ti.i32, (max(n, 1),))
     total = exclusive_scan_into(mask, prefix) if n else 0
+    if not total:
+        return None, 0
     out = ndarray(ti.i32, (total,))
-    if total:
-        _compact(mask, prefix, out)
-    return out
+    _compact(mask, prefix, out)
+    return out, total
+
+
+def mask_to_indices(mask):
+    """Ascending indices of the non-zero entries of an int32 ndarray mask (stays on the device)."""
+    out, total = compact_mask(mask)
+    return out if total else ndarray(ti.i32, (0,))
 
 
 def voxel_downsample(xyz, voxel_size: float):

@@ -26,7 +26,7 @@ import numpy as np
 import taichi as ti
 
 from .common import as_ndarray, length, like_input, ndarray
-from .grid import Grid, build_grid, cell_hash
+from .grid import Grid, build_grid, cell_hash, compact_mask
 from .scan import exclusive_scan_into
 
 SMALL_K = 32
@@ -113,17 +113,204 @@ def _distance(j: ti.i32, q: ti.math.vec3, sxyz: ti.template()) -> ti.f32:
     return ti.sqrt(p.dot(p))
 
 
+@ti.func
+def _heap_offer(heap_key: ti.template(), heap_idx: ti.template(), size: ti.i32, k: ti.i32,
+                key: ti.i32, idx: ti.i32) -> ti.i32:
+    """Offer (key, idx) to a max-heap of the k smallest pairs so far; returns the new size."""
+    if size < k:
+        pos = size      # sift up
+        size += 1
+        while pos > 0:
+            parent = (pos - 1) // 2
+            if _pair_less(heap_key[parent], heap_idx[parent], key, idx):
+                heap_key[pos] = heap_key[parent]
+                heap_idx[pos] = heap_idx[parent]
+                pos = parent
+            else:
+                break
+        heap_key[pos] = key
+        heap_idx[pos] = idx
+    elif _pair_less(key, idx, heap_key[0], heap_idx[0]):
+        pos = 0         # replace the root, sift down
+        while True:
+            child = 2 * pos + 1
+            if child >= k:
+                break
+            sibling = ti.min(child + 1, k - 1)   # and/or do not short-circuit
+            if child + 1 < k:
+                if _pair_less(heap_key[child], heap_idx[child], heap_key[sibling], heap_idx[sibling]):
+                    child = sibling
+            if _pair_less(key, idx, heap_key[child], heap_idx[child]):
+                heap_key[pos] = heap_key[child]
+                heap_idx[pos] = heap_idx[child]
+                pos = child
+            else:
+                break
+        heap_key[pos] = key
+        heap_idx[pos] = idx
+    return size
+
+
+@ti.func
+def _heap_emit(heap_key: ti.template(), heap_idx: ti.template(), size: ti.i32, k: ti.i32, qi: ti.i32,
+               self_slots: ti.i32, out_idx: ti.template(), out_dist: ti.template(),
+               out_mean: ti.template(), emit_rows: ti.template()):
+    """Heap-sort in place to ascending (distance, index), then write the row or its mean (the
+    sum runs in that canonical order, so every scan order gives the same bits)."""
+    end = size - 1
+    while end > 0:
+        tk = heap_key[0]
+        tx = heap_idx[0]
+        heap_key[0] = heap_key[end]
+        heap_idx[0] = heap_idx[end]
+        heap_key[end] = tk
+        heap_idx[end] = tx
+        pos = 0
+        while True:
+            child = 2 * pos + 1
+            if child >= end:
+                break
+            sibling = ti.min(child + 1, end - 1)
+            if child + 1 < end:
+                if _pair_less(heap_key[child], heap_idx[child], heap_key[sibling], heap_idx[sibling]):
+                    child = sibling
+            if _pair_less(heap_key[pos], heap_idx[pos], heap_key[child], heap_idx[child]):
+                tk = heap_key[pos]
+                tx = heap_idx[pos]
+                heap_key[pos] = heap_key[child]
+                heap_idx[pos] = heap_idx[child]
+                heap_key[child] = tk
+                heap_idx[child] = tx
+                pos = child
+            else:
+                break
+        end -= 1
+    dist_sum = 0.0
+    for r in range(k):
+        dist = ti.bit_cast(heap_key[r], ti.f32)
+        if ti.static(emit_rows):
+            out_idx[qi, r] = heap_idx[r]
+            out_dist[qi, r] = dist
+        else:
+            dist_sum += dist
+    if ti.static(not emit_rows):
+        out_mean[qi] = dist_sum / ti.cast(k + self_slots, ti.f32)
+
+
+@ti.func
+def _offer_run(lo: ti.i32, hi: ti.i32, s: ti.i32, q: ti.math.vec3, heap_key: ti.template(),
+               heap_idx: ti.template(), size: ti.i32, k: ti.i32, order: ti.template(),
+               sxyz: ti.template()) -> ti.i32:
+    """Offer the points at sorted positions [lo, hi) (except s, the query) to the heap."""
+    top = _INF_KEY
+    if size == k:
+        top = heap_key[0]
+    # squared distances prefilter: sqrt only for candidates that can enter the heap (the
+    # relative margin keeps every candidate whose float32 distance ties the k-th)
+    top_d = ti.bit_cast(top, ti.f32)
+    top_d2 = top_d * top_d * 1.000001
+    for j in range(lo, hi):
+        p = ti.math.vec3(sxyz[j, 0], sxyz[j, 1], sxyz[j, 2]) - q
+        d2 = p.dot(p)
+        if d2 <= top_d2 and j != s:
+            key = ti.bit_cast(ti.sqrt(d2), ti.i32)
+            if key <= top:
+                size = _heap_offer(heap_key, heap_idx, size, k, key, order[j])
+                if size == k:
+                    top = heap_key[0]
+                    top_d = ti.bit_cast(top, ti.f32)
+                    top_d2 = top_d * top_d * 1.000001
+    return size
+
+
+@ti.func
+def _cell_run(target: ti.math.ivec3, bstart: ti.template(), scell: ti.template(), mask: ti.i32) -> ti.math.ivec2:
+    """Sorted positions [lo, hi) of a cell's points (empty when unoccupied): its hash bucket,
+    less the points of other cells sharing the bucket (a bucket is sorted by cell)."""
+    h = cell_hash(target, mask)
+    lo = 0
+    hi = 0
+    for j in range(bstart[h], bstart[h + 1]):
+        if scell[j, 0] == target[0] and scell[j, 1] == target[1] and scell[j, 2] == target[2]:
+            if hi == 0:
+                lo = j
+            hi = j + 1
+    return ti.math.ivec2(lo, hi)
+
+
+@ti.kernel
+def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
+               scell: ti.types.ndarray(dtype=ti.i32, ndim=2), bstart: ti.types.ndarray(dtype=ti.i32, ndim=1),
+               cell_start: ti.types.ndarray(dtype=ti.i32, ndim=1),
+               mask: ti.i32, ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32, inv_cell: ti.f32,
+               k: ti.i32, self_slots: ti.i32, pending: ti.types.ndarray(dtype=ti.i32, ndim=1),
+               out_idx: ti.types.ndarray(dtype=ti.i32, ndim=2), out_dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
+               out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.template()):
+    """k <= SMALL_K, one occupied cell per iteration: the runs of its 27 neighbouring cells are
+    looked up once, then each of its points keeps a register heap of the nearest candidates from
+    them. A point whose k-th is not inside the cube's safe radius adds the cells of the second
+    ring that its k-th can reach; if that does not settle it either, it is marked in ``pending``
+    (indexed by sorted position) for the ring-growing kernel."""
+    for ci in range(cell_start.shape[0] - 1):
+        a = cell_start[ci]
+        b = cell_start[ci + 1]
+        c = ti.math.ivec3(scell[a, 0], scell[a, 1], scell[a, 2])
+        run_lo = ti.Vector([0] * 27, ti.i32)
+        run_hi = ti.Vector([0] * 27, ti.i32)
+        n_runs = 1
+        run_lo[0] = a           # own cell first: the heap fills with near points
+        run_hi[0] = b
+        for t in range(27):
+            if t != 13:
+                rg = _cell_run(c + ti.math.ivec3(t % 3 - 1, (t // 3) % 3 - 1, t // 9 - 1), bstart, scell, mask)
+                if rg[1] > rg[0]:
+                    run_lo[n_runs] = rg[0]
+                    run_hi[n_runs] = rg[1]
+                    n_runs += 1
+        for s in range(a, b):
+            q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
+            u = (q - ti.math.vec3(ox, oy, oz)) * inv_cell
+            heap_key = ti.Vector([0] * SMALL_K, ti.i32)
+            heap_idx = ti.Vector([0] * SMALL_K, ti.i32)
+            size = 0
+            for r in range(n_runs):
+                size = _offer_run(run_lo[r], run_hi[r], s, q, heap_key, heap_idx, size, k, order, sxyz)
+            settled = 0
+            if size == k and ti.bit_cast(heap_key[0], ti.f32) < _safe_radius(u, c, 1, cell_size):
+                settled = 1
+            else:
+                for t in range(125):
+                    d = ti.math.ivec3(t % 5 - 2, (t // 5) % 5 - 2, t // 25 - 2)
+                    if ti.abs(d).max() == 2:
+                        visit = 1
+                        if size == k:
+                            if _box_distance(u, c, d, cell_size) > ti.bit_cast(heap_key[0], ti.f32):
+                                visit = 0
+                        if visit:
+                            rg = _cell_run(c + d, bstart, scell, mask)
+                            size = _offer_run(rg[0], rg[1], s, q, heap_key, heap_idx, size, k, order, sxyz)
+                if size == k and ti.bit_cast(heap_key[0], ti.f32) < _safe_radius(u, c, 2, cell_size):
+                    settled = 1
+            if settled:
+                _heap_emit(heap_key, heap_idx, size, k, order[s], self_slots, out_idx, out_dist,
+                           out_mean, emit_rows)
+            pending[s] = 1 - settled
+
+
 @ti.kernel
 def _knn_heap(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
               scell: ti.types.ndarray(dtype=ti.i32, ndim=2), bstart: ti.types.ndarray(dtype=ti.i32, ndim=1),
+              queries: ti.types.ndarray(dtype=ti.i32, ndim=1),
               mask: ti.i32, ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32, inv_cell: ti.f32,
               k: ti.i32, brute_cells: ti.i32, self_slots: ti.i32,
               out_idx: ti.types.ndarray(dtype=ti.i32, ndim=2), out_dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
               out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.template()):
-    """k <= SMALL_K: one max-heap per query in registers; rings are added shell by shell, and a
-    cell is skipped when its box is farther than the current k-th candidate."""
+    """k <= SMALL_K, for the points (sorted positions in ``queries``) that one cube did not
+    settle: one max-heap per query in registers; rings are added shell by shell, and a cell is
+    skipped when its box is farther than the current k-th candidate."""
     n = sxyz.shape[0]
-    for s in range(n):
+    for qs in range(queries.shape[0]):
+        s = queries[qs]
         qi = order[s]
         q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
         c = ti.math.ivec3(scell[s, 0], scell[s, 1], scell[s, 2])
@@ -166,38 +353,7 @@ def _knn_heap(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndar
                         member = _is_member(j, target, 0, qi, order, scell)
                     if member:
                         key = ti.bit_cast(_distance(j, q, sxyz), ti.i32)
-                        idx = order[j]
-                        if size < k:
-                            pos = size      # sift up
-                            size += 1
-                            while pos > 0:
-                                parent = (pos - 1) // 2
-                                if _pair_less(heap_key[parent], heap_idx[parent], key, idx):
-                                    heap_key[pos] = heap_key[parent]
-                                    heap_idx[pos] = heap_idx[parent]
-                                    pos = parent
-                                else:
-                                    break
-                            heap_key[pos] = key
-                            heap_idx[pos] = idx
-                        elif _pair_less(key, idx, heap_key[0], heap_idx[0]):
-                            pos = 0         # replace the root, sift down
-                            while True:
-                                child = 2 * pos + 1
-                                if child >= k:
-                                    break
-                                sibling = ti.min(child + 1, k - 1)   # and/or do not short-circuit
-                                if child + 1 < k:
-                                    if _pair_less(heap_key[child], heap_idx[child], heap_key[sibling], heap_idx[sibling]):
-                                        child = sibling
-                                if _pair_less(key, idx, heap_key[child], heap_idx[child]):
-                                    heap_key[pos] = heap_key[child]
-                                    heap_idx[pos] = heap_idx[child]
-                                    pos = child
-                                else:
-                                    break
-                            heap_key[pos] = key
-                            heap_idx[pos] = idx
+                        size = _heap_offer(heap_key, heap_idx, size, k, key, order[j])
             if brute or (size == k and ti.bit_cast(heap_key[0], ti.f32) < sr):
                 done = 1
             else:
@@ -206,45 +362,7 @@ def _knn_heap(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndar
                     brute = 1
                 else:
                     ring += 1
-        # heap sort in place: ascending (distance, index)
-        end = size - 1
-        while end > 0:
-            tk = heap_key[0]
-            tx = heap_idx[0]
-            heap_key[0] = heap_key[end]
-            heap_idx[0] = heap_idx[end]
-            heap_key[end] = tk
-            heap_idx[end] = tx
-            pos = 0
-            while True:
-                child = 2 * pos + 1
-                if child >= end:
-                    break
-                sibling = ti.min(child + 1, end - 1)
-                if child + 1 < end:
-                    if _pair_less(heap_key[child], heap_idx[child], heap_key[sibling], heap_idx[sibling]):
-                        child = sibling
-                if _pair_less(heap_key[pos], heap_idx[pos], heap_key[child], heap_idx[child]):
-                    tk = heap_key[pos]
-                    tx = heap_idx[pos]
-                    heap_key[pos] = heap_key[child]
-                    heap_idx[pos] = heap_idx[child]
-                    heap_key[child] = tk
-                    heap_idx[child] = tx
-                    pos = child
-                else:
-                    break
-            end -= 1
-        dist_sum = 0.0
-        for r in range(k):
-            dist = ti.bit_cast(heap_key[r], ti.f32)
-            if ti.static(emit_rows):
-                out_idx[qi, r] = heap_idx[r]
-                out_dist[qi, r] = dist
-            else:
-                dist_sum += dist
-        if ti.static(not emit_rows):
-            out_mean[qi] = dist_sum / ti.cast(k + self_slots, ti.f32)
+        _heap_emit(heap_key, heap_idx, size, k, qi, self_slots, out_idx, out_dist, out_mean, emit_rows)
 
 
 @ti.func
@@ -548,10 +666,18 @@ def _brute_cells(n: int) -> int:
 
 def _run_scan(grid: Grid, k: int, out_idx, out_dist, out_mean, emit_rows: bool, self_slots: int):
     ox, oy, oz = grid.origin
-    kernel = _knn_heap if k <= SMALL_K else _knn_select
-    kernel(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, grid.table_mask,
-              ox, oy, oz, grid.cell_size, grid.inv_cell, k, _brute_cells(grid.n), self_slots,
-              out_idx, out_dist, out_mean, emit_rows)
+    geometry = (grid.table_mask, ox, oy, oz, grid.cell_size, grid.inv_cell, k)
+    if k > SMALL_K:
+        _knn_select(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, *geometry,
+                    _brute_cells(grid.n), self_slots, out_idx, out_dist, out_mean, emit_rows)
+        return
+    pending = ndarray(ti.i32, (grid.n,))
+    _knn_cells(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, grid.cell_start,
+               *geometry, self_slots, pending, out_idx, out_dist, out_mean, emit_rows)
+    queries, n_pending = compact_mask(pending)
+    if n_pending:
+        _knn_heap(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, queries,
+                  *geometry, _brute_cells(grid.n), self_slots, out_idx, out_dist, out_mean, emit_rows)
 
 
 def default_points_per_cell(k: int) -> float:

@@ -100,9 +100,10 @@ def test_knn_matches_brute_force(ti_arch, cloud, k_frac, big_k):
 
 # ---------------------------------------------------------------------------------- grid minima
 @SETTINGS
-@given(cloud=clouds, step=st.sampled_from([0.05, 0.3, 1.0, 2.5]), snap=st.booleans())
-def test_cell_minimum_matches_numpy(ti_arch, cloud, step, snap):
+@given(cloud=clouds, step_frac=st.sampled_from([0.013, 0.1, 0.3, 1.0, 2.5]), snap=st.booleans())
+def test_cell_minimum_matches_numpy(ti_arch, cloud, step_frac, snap):
     kind, n, seed, scale = cloud
+    step = float(np.float32(step_frac * scale))   # at most ~100 x 100 cells
     xyz = make_cloud(kind, n, seed, scale)
     if snap:   # points exactly on cell borders, and tied heights
         xyz[:, :2] = np.round(xyz[:, :2] / step) * step
@@ -218,7 +219,10 @@ def test_build_grid_order_is_a_stable_sort_by_cell(ti_arch, cloud, cells_per_ext
 
 
 # ------------------------------------------------------------------------------------------ CSF
-@settings(max_examples=12, deadline=None, derandomize=True, phases=PHASES,
+# Few examples and iterations: on a flat plane every particle collides at once, and (as in the
+# package) the simulation then runs all its iterations, which is slow on lavapipe. The cloth starts
+# just above the plane, so 60 iterations are plenty for it to settle.
+@settings(max_examples=8, deadline=None, derandomize=True, phases=PHASES,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(seed=st.integers(0, 2**16), resolution=st.sampled_from([0.5, 1.0, 2.0]),
        level=st.floats(-50, 200), side=st.sampled_from([8.0, 15.0]), spikes=st.integers(0, 3),
@@ -231,7 +235,7 @@ def test_csf_flat_plane_is_ground_and_high_points_are_not(ti_arch, seed, resolut
                            level + rng.normal(0, 0.01, n)]).astype(np.float32)
     raised = rng.choice(n, spikes, replace=False)
     xyz[raised, 2] += np.float32(spike_height)
-    result = cloth.csf(xyz, cloth_resolution=resolution, rigidness=3, iterations=500,
+    result = cloth.csf(xyz, cloth_resolution=resolution, rigidness=3, iterations=60,
                        class_threshold=0.5)
     ground = np.asarray(result.ground, bool)
     assert ground.shape == (n,)

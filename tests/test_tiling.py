@@ -182,11 +182,14 @@ def test_synthetic_scene_every_point_once_and_labels_close(tmp_path, n_points):
     # about 4 % of the area of a 100 m core).
     near = cmp["disagreements_by_border_distance_m"]["0-1"]
     assert near <= 0.1 * max(cmp["disagreements"], 1), cmp
-    assert cmp["agreement"] >= 0.97, cmp
+    # the cloth is laid on world multiples of its resolution (cloth align_to_world), so tiles and
+    # the whole run share one lattice; that took agreement from 0.973 to 0.989 here
+    assert cmp["agreement"] >= 0.985, cmp
     if cmp["agreement"] < 0.999:
-        pytest.xfail(f"tiled/untiled agreement {cmp['agreement']:.4f} < 0.999: the CSF cloth lattice is "
-                     "anchored at each cloud's minimum corner, so a tile's cloth is shifted by a fraction "
-                     "of the resolution (needs the lattice anchored at world multiples of cloth_resolution)")
+        pytest.xfail(f"tiled/untiled agreement {cmp['agreement']:.4f} < 0.999 (issue 8 target): the cloth "
+                     "simulation is order and history dependent (like the CSF package, whose own output "
+                     "changes with its thread count): a tile's cloth stops at a different iteration "
+                     "(global max-displacement rule) and its sweep bands start at other rows")
 
 
 # ------------------------------------------------------------------------------------- failure

@@ -25,6 +25,11 @@ class ClothOptions(StageOptions):
                                "steep slopes")
 
 
+    align_to_world: bool = Field(True, description="lay the particles on world multiples of "
+                                 "cloth_resolution, so tiled and whole runs share one cloth lattice "
+                                 "(false: the package's layout from the bounding box)")
+
+
 class ClothSmoothOptions(ClothOptions):
     # METHODS.md R5 values (paper Table 1): C_r = 2, C_n = 500, C_t = 0.3
     cloth_resolution: float = Field(2.0, gt=0, description="C_r: particle spacing of the cloth (m); paper 2")
@@ -32,11 +37,18 @@ class ClothSmoothOptions(ClothOptions):
                                    "the cloth is kept (m); paper 0.3")
 
 
+def world_lattice(origin, resolution: float):
+    """Local coordinates of a particle whose world x, y are multiples of ``resolution`` (float64
+    math on the cloud's origin, so tiles with different origins agree)."""
+    return tuple(float((-float(o)) % resolution) for o in origin[:2])
+
+
 def _run_cloth(options: ClothOptions, cloud: Cloud) -> ClothResult:
+    lattice = world_lattice(cloud.origin, options.cloth_resolution) if options.align_to_world else None
     return csf(cloud.xyz, cloth_resolution=options.cloth_resolution,
                rigidness=options.rigidness, time_step=options.time_step,
                iterations=options.iterations, class_threshold=options.class_threshold,
-               slope_smooth=options.slope_smooth)
+               slope_smooth=options.slope_smooth, lattice_origin=lattice)
 
 
 def _info(result: ClothResult) -> dict:
