@@ -207,7 +207,7 @@ def build_grid(xyz, cell_size=None, *, points_per_cell: float = 8.0) -> Grid:
     if float(extent.max(initial=0.0)) * float(inv_cell) >= _MAX_CELL_COORD:
         raise ValueError(f"cell_size {cell_size} is too small for an extent of {extent.max()} "
                          f"(cell coordinates would overflow int32)")
-    table = 1 << max(4, int(math.ceil(math.log2(max(2 * n, 1)))))
+    table = 1 << max(6, int(math.ceil(math.log2(max(2 * n, 1)))))
     mask = table - 1
     ox, oy, oz = (float(v) for v in lo)
     cell = ndarray(ti.i32, (max(n, 1), 3))

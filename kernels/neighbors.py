@@ -37,6 +37,9 @@ _BIN_BITS = 5
 _INF_KEY = 0x7F800000          # float bits of +inf: larger than any finite distance
 _FIRST_SHIFT = 19              # first bins: 1/16 octave (2^23 float bits per octave), 2 octaves
 _BRUTE_SHIFT = 26              # brute force: 32 bins cover every finite float
+_BLOCK_BITS = 2                # blocks of 4x4x4 cells: 64 consecutive buckets (grid.cell_hash)
+_BLOCK = 1 << _BLOCK_BITS
+_CPU_GRAIN = 64                # iterations a CPU thread takes at a time (dynamic load balance)
 
 
 @ti.func
@@ -116,34 +119,20 @@ def _distance(j: ti.i32, q: ti.math.vec3, sxyz: ti.template()) -> ti.f32:
 @ti.func
 def _heap_offer(heap_key: ti.template(), heap_idx: ti.template(), size: ti.i32, k: ti.i32,
                 key: ti.i32, idx: ti.i32) -> ti.i32:
-    """Offer (key, idx) to a max-heap of the k smallest pairs so far; returns the new size."""
+    """Offer (key, idx) to the ascending list of the k smallest pairs so far (insertion from
+    the end; the k-th is always at size - 1); returns the new size."""
+    pos = -1
     if size < k:
-        pos = size      # sift up
+        pos = size
         size += 1
+    elif _pair_less(key, idx, heap_key[k - 1], heap_idx[k - 1]):
+        pos = k - 1
+    if pos >= 0:
         while pos > 0:
-            parent = (pos - 1) // 2
-            if _pair_less(heap_key[parent], heap_idx[parent], key, idx):
-                heap_key[pos] = heap_key[parent]
-                heap_idx[pos] = heap_idx[parent]
-                pos = parent
-            else:
-                break
-        heap_key[pos] = key
-        heap_idx[pos] = idx
-    elif _pair_less(key, idx, heap_key[0], heap_idx[0]):
-        pos = 0         # replace the root, sift down
-        while True:
-            child = 2 * pos + 1
-            if child >= k:
-                break
-            sibling = ti.min(child + 1, k - 1)   # and/or do not short-circuit
-            if child + 1 < k:
-                if _pair_less(heap_key[child], heap_idx[child], heap_key[sibling], heap_idx[sibling]):
-                    child = sibling
-            if _pair_less(key, idx, heap_key[child], heap_idx[child]):
-                heap_key[pos] = heap_key[child]
-                heap_idx[pos] = heap_idx[child]
-                pos = child
+            if _pair_less(key, idx, heap_key[pos - 1], heap_idx[pos - 1]):
+                heap_key[pos] = heap_key[pos - 1]
+                heap_idx[pos] = heap_idx[pos - 1]
+                pos -= 1
             else:
                 break
         heap_key[pos] = key
@@ -155,36 +144,8 @@ def _heap_offer(heap_key: ti.template(), heap_idx: ti.template(), size: ti.i32, 
 def _heap_emit(heap_key: ti.template(), heap_idx: ti.template(), size: ti.i32, k: ti.i32, qi: ti.i32,
                self_slots: ti.i32, out_idx: ti.template(), out_dist: ti.template(),
                out_mean: ti.template(), emit_rows: ti.template()):
-    """Heap-sort in place to ascending (distance, index), then write the row or its mean (the
-    sum runs in that canonical order, so every scan order gives the same bits)."""
-    end = size - 1
-    while end > 0:
-        tk = heap_key[0]
-        tx = heap_idx[0]
-        heap_key[0] = heap_key[end]
-        heap_idx[0] = heap_idx[end]
-        heap_key[end] = tk
-        heap_idx[end] = tx
-        pos = 0
-        while True:
-            child = 2 * pos + 1
-            if child >= end:
-                break
-            sibling = ti.min(child + 1, end - 1)
-            if child + 1 < end:
-                if _pair_less(heap_key[child], heap_idx[child], heap_key[sibling], heap_idx[sibling]):
-                    child = sibling
-            if _pair_less(heap_key[pos], heap_idx[pos], heap_key[child], heap_idx[child]):
-                tk = heap_key[pos]
-                tx = heap_idx[pos]
-                heap_key[pos] = heap_key[child]
-                heap_idx[pos] = heap_idx[child]
-                heap_key[child] = tk
-                heap_idx[child] = tx
-                pos = child
-            else:
-                break
-        end -= 1
+    """Write the row (ascending (distance, index)) or its mean (summed in that canonical order,
+    so every scan order gives the same bits)."""
     dist_sum = 0.0
     for r in range(k):
         dist = ti.bit_cast(heap_key[r], ti.f32)
@@ -200,14 +161,15 @@ def _heap_emit(heap_key: ti.template(), heap_idx: ti.template(), size: ti.i32, k
 @ti.func
 def _offer_run(lo: ti.i32, hi: ti.i32, s: ti.i32, q: ti.math.vec3, heap_key: ti.template(),
                heap_idx: ti.template(), size: ti.i32, k: ti.i32, order: ti.template(),
-               sxyz: ti.template()) -> ti.i32:
-    """Offer the points at sorted positions [lo, hi) (except s, the query) to the heap."""
+               sxyz: ti.template(), bound: ti.f32) -> ti.i32:
+    """Offer the points at sorted positions [lo, hi) (except s, the query) that lie within
+    ``bound`` (an upper bound on the k-th distance, +inf when none is known) to the list."""
     top = _INF_KEY
     if size == k:
-        top = heap_key[0]
-    # squared distances prefilter: sqrt only for candidates that can enter the heap (the
+        top = heap_key[k - 1]
+    # squared distances prefilter: sqrt only for candidates that can enter the list (the
     # relative margin keeps every candidate whose float32 distance ties the k-th)
-    top_d = ti.bit_cast(top, ti.f32)
+    top_d = ti.min(ti.bit_cast(top, ti.f32), bound)
     top_d2 = top_d * top_d * 1.000001
     for j in range(lo, hi):
         p = ti.math.vec3(sxyz[j, 0], sxyz[j, 1], sxyz[j, 2]) - q
@@ -217,8 +179,8 @@ def _offer_run(lo: ti.i32, hi: ti.i32, s: ti.i32, q: ti.math.vec3, heap_key: ti.
             if key <= top:
                 size = _heap_offer(heap_key, heap_idx, size, k, key, order[j])
                 if size == k:
-                    top = heap_key[0]
-                    top_d = ti.bit_cast(top, ti.f32)
+                    top = heap_key[k - 1]
+                    top_d = ti.min(ti.bit_cast(top, ti.f32), bound)
                     top_d2 = top_d * top_d * 1.000001
     return size
 
@@ -251,46 +213,66 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
     them. A point whose k-th is not inside the cube's safe radius adds the cells of the second
     ring that its k-th can reach; if that does not settle it either, it is marked in ``pending``
     (indexed by sorted position) for the ring-growing kernel."""
+    ti.loop_config(block_dim=_CPU_GRAIN)
     for ci in range(cell_start.shape[0] - 1):
         a = cell_start[ci]
         b = cell_start[ci + 1]
         c = ti.math.ivec3(scell[a, 0], scell[a, 1], scell[a, 2])
         run_lo = ti.Vector([0] * 27, ti.i32)
         run_hi = ti.Vector([0] * 27, ti.i32)
-        n_runs = 1
-        run_lo[0] = a           # own cell first: the heap fills with near points
-        run_hi[0] = b
-        for t in range(27):
-            if t != 13:
-                rg = _cell_run(c + ti.math.ivec3(t % 3 - 1, (t // 3) % 3 - 1, t // 9 - 1), bstart, scell, mask)
-                if rg[1] > rg[0]:
-                    run_lo[n_runs] = rg[0]
-                    run_hi[n_runs] = rg[1]
-                    n_runs += 1
+        run_at = ti.Vector([0] * 27, ti.i32)          # the run's cell offset, packed
+        n_runs = 0
+        # own cell, then the 6 face, 12 edge and 8 corner neighbours: near candidates first,
+        # so the heap's k-th tightens early and most later candidates fail one comparison
+        for rank in range(4):
+            for t in range(27):
+                d = ti.math.ivec3(t % 3 - 1, (t // 3) % 3 - 1, t // 9 - 1)
+                if ti.abs(d).sum() == rank:
+                    rg = ti.math.ivec2(a, b)
+                    if rank > 0:
+                        rg = _cell_run(c + d, bstart, scell, mask)
+                    if rg[1] > rg[0]:
+                        run_lo[n_runs] = rg[0]
+                        run_hi[n_runs] = rg[1]
+                        run_at[n_runs] = t
+                        n_runs += 1
+        prev_q = ti.math.vec3(0.0)
+        prev_kth = ti.math.inf
         for s in range(a, b):
             q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
             u = (q - ti.math.vec3(ox, oy, oz)) * inv_cell
+            # the previous query's k nearest plus that query itself are k points other than q
+            # within prev_kth + |q - prev_q|: a bound that rejects most candidates up front
+            bound = (prev_kth + (q - prev_q).norm()) * 1.00001 + 1e-30
             heap_key = ti.Vector([0] * SMALL_K, ti.i32)
             heap_idx = ti.Vector([0] * SMALL_K, ti.i32)
             size = 0
             for r in range(n_runs):
-                size = _offer_run(run_lo[r], run_hi[r], s, q, heap_key, heap_idx, size, k, order, sxyz)
+                t = run_at[r]
+                d = ti.math.ivec3(t % 3 - 1, (t // 3) % 3 - 1, t // 9 - 1)
+                reach = bound
+                if size == k:
+                    reach = ti.min(reach, ti.bit_cast(heap_key[k - 1], ti.f32))
+                if _box_distance(u, c, d, cell_size) <= reach:
+                    size = _offer_run(run_lo[r], run_hi[r], s, q, heap_key, heap_idx, size, k, order, sxyz, bound)
             settled = 0
-            if size == k and ti.bit_cast(heap_key[0], ti.f32) < _safe_radius(u, c, 1, cell_size):
+            if size == k and ti.bit_cast(heap_key[k - 1], ti.f32) < _safe_radius(u, c, 1, cell_size):
                 settled = 1
             else:
                 for t in range(125):
                     d = ti.math.ivec3(t % 5 - 2, (t // 5) % 5 - 2, t // 25 - 2)
                     if ti.abs(d).max() == 2:
-                        visit = 1
+                        reach = bound
                         if size == k:
-                            if _box_distance(u, c, d, cell_size) > ti.bit_cast(heap_key[0], ti.f32):
-                                visit = 0
-                        if visit:
+                            reach = ti.min(reach, ti.bit_cast(heap_key[k - 1], ti.f32))
+                        if _box_distance(u, c, d, cell_size) <= reach:
                             rg = _cell_run(c + d, bstart, scell, mask)
-                            size = _offer_run(rg[0], rg[1], s, q, heap_key, heap_idx, size, k, order, sxyz)
-                if size == k and ti.bit_cast(heap_key[0], ti.f32) < _safe_radius(u, c, 2, cell_size):
+                            size = _offer_run(rg[0], rg[1], s, q, heap_key, heap_idx, size, k, order, sxyz, bound)
+                if size == k and ti.bit_cast(heap_key[k - 1], ti.f32) < _safe_radius(u, c, 2, cell_size):
                     settled = 1
+            if size == k:
+                prev_q = q
+                prev_kth = ti.bit_cast(heap_key[k - 1], ti.f32)
             if settled:
                 _heap_emit(heap_key, heap_idx, size, k, order[s], self_slots, out_idx, out_dist,
                            out_mean, emit_rows)
@@ -298,68 +280,64 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
 
 
 @ti.kernel
-def _knn_heap(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
-              scell: ti.types.ndarray(dtype=ti.i32, ndim=2), bstart: ti.types.ndarray(dtype=ti.i32, ndim=1),
-              queries: ti.types.ndarray(dtype=ti.i32, ndim=1),
-              mask: ti.i32, ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32, inv_cell: ti.f32,
-              k: ti.i32, brute_cells: ti.i32, self_slots: ti.i32,
-              out_idx: ti.types.ndarray(dtype=ti.i32, ndim=2), out_dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
-              out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.template()):
-    """k <= SMALL_K, for the points (sorted positions in ``queries``) that one cube did not
-    settle: one max-heap per query in registers; rings are added shell by shell, and a cell is
-    skipped when its box is farther than the current k-th candidate."""
+def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                scell: ti.types.ndarray(dtype=ti.i32, ndim=2), bstart: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                queries: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                mask: ti.i32, ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32, inv_cell: ti.f32,
+                k: ti.i32, brute_blocks: ti.i32, self_slots: ti.i32,
+                out_idx: ti.types.ndarray(dtype=ti.i32, ndim=2), out_dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.template()):
+    """k <= SMALL_K, for the points (sorted positions in ``queries``) that the cell kernel did
+    not settle: sparse regions and outliers. Searches blocks of 4x4x4 cells (their points are one
+    contiguous range of buckets, ``grid.cell_hash``), shell by shell around the query's block,
+    skipping blocks farther than the current k-th; past ``brute_blocks`` it scans all points."""
     n = sxyz.shape[0]
+    block_size = cell_size * _BLOCK
     for qs in range(queries.shape[0]):
         s = queries[qs]
         qi = order[s]
         q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
-        c = ti.math.ivec3(scell[s, 0], scell[s, 1], scell[s, 2])
-        u = (q - ti.math.vec3(ox, oy, oz)) * inv_cell
+        cb = ti.math.ivec3(scell[s, 0], scell[s, 1], scell[s, 2]) >> _BLOCK_BITS
+        u = (q - ti.math.vec3(ox, oy, oz)) * (inv_cell / _BLOCK)
         heap_key = ti.Vector([0] * SMALL_K, ti.i32)
         heap_idx = ti.Vector([0] * SMALL_K, ti.i32)
         size = 0
-        ring = 1
-        inner = -1              # rings <= inner were scanned already
-        brute = 0
+        ring = 0
         done = 0
         while done == 0:
-            sr = _safe_radius(u, c, ring, cell_size)
-            span = 2 * ring + 1
-            n_cells = span * span * span
-            if brute:
-                n_cells = 1
-            d = ti.math.ivec3(0, 0, 0)          # own cell first: the heap fills with near points
-            for t in range(n_cells):
-                if t > 0:
-                    d = _next_offset(d, ring)
-                target = c + d
-                rg = ti.math.ivec2(0, n)
-                if brute == 0:
-                    rg = ti.math.ivec2(0, 0)
-                    if ti.abs(d).max() > inner:
-                        visit = 1
-                        if size == k:
-                            if _box_distance(u, c, d, cell_size) > ti.bit_cast(heap_key[0], ti.f32):
-                                visit = 0
-                        if visit:
-                            rg = _cell_range(target, 0, n, bstart, mask)
-                for j in range(rg[0], rg[1]):
-                    member = 0
-                    if brute:
-                        member = ti.cast(order[j] != qi, ti.i32) & ti.cast(
-                            ti.max(ti.abs(scell[j, 0] - c[0]), ti.abs(scell[j, 1] - c[1]),
-                                   ti.abs(scell[j, 2] - c[2])) > inner, ti.i32)
-                    else:
-                        member = _is_member(j, target, 0, qi, order, scell)
-                    if member:
-                        key = ti.bit_cast(_distance(j, q, sxyz), ti.i32)
-                        size = _heap_offer(heap_key, heap_idx, size, k, key, order[j])
-            if brute or (size == k and ti.bit_cast(heap_key[0], ti.f32) < sr):
+            if (2 * ring + 1) * (2 * ring + 1) * (2 * ring + 1) > brute_blocks:
+                # far from everything: every point outside the rings already scanned
+                for j in range(n):
+                    if j != s:
+                        bj = ti.math.ivec3(scell[j, 0], scell[j, 1], scell[j, 2]) >> _BLOCK_BITS
+                        if ti.abs(bj - cb).max() >= ring:
+                            size = _offer_run(j, j + 1, s, q, heap_key, heap_idx, size, k, order, sxyz, ti.math.inf)
                 done = 1
             else:
-                inner = ring
-                if (2 * ring + 3) * (2 * ring + 3) * (2 * ring + 3) > brute_cells:
-                    brute = 1
+                # the shell of blocks at Chebyshev distance ring: whole faces at dz or dy = +-ring,
+                # otherwise only dx = +-ring
+                for dz in range(-ring, ring + 1):
+                    for dy in range(-ring, ring + 1):
+                        step = 1
+                        if ti.abs(dz) != ring and ti.abs(dy) != ring:
+                            step = ti.max(2 * ring, 1)
+                        dx = -ring
+                        while dx <= ring:
+                            d = ti.math.ivec3(dx, dy, dz)
+                            visit = 1
+                            if size == k:
+                                if _box_distance(u, cb, d, block_size) > ti.bit_cast(heap_key[k - 1], ti.f32):
+                                    visit = 0
+                            if visit:
+                                target = cb + d
+                                base = cell_hash(target << _BLOCK_BITS, mask)   # its 64 buckets
+                                for j in range(bstart[base], bstart[base + _BLOCK * _BLOCK * _BLOCK]):
+                                    if scell[j, 0] >> _BLOCK_BITS == target[0] and scell[j, 1] >> _BLOCK_BITS == target[1] \
+                                            and scell[j, 2] >> _BLOCK_BITS == target[2]:
+                                        size = _offer_run(j, j + 1, s, q, heap_key, heap_idx, size, k, order, sxyz, ti.math.inf)
+                            dx += step
+                if size == k and ti.bit_cast(heap_key[k - 1], ti.f32) < _safe_radius(u, cb, ring, block_size):
+                    done = 1
                 else:
                     ring += 1
         _heap_emit(heap_key, heap_idx, size, k, qi, self_slots, out_idx, out_dist, out_mean, emit_rows)
@@ -676,8 +654,8 @@ def _run_scan(grid: Grid, k: int, out_idx, out_dist, out_mean, emit_rows: bool, 
                *geometry, self_slots, pending, out_idx, out_dist, out_mean, emit_rows)
     queries, n_pending = compact_mask(pending)
     if n_pending:
-        _knn_heap(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, queries,
-                  *geometry, _brute_cells(grid.n), self_slots, out_idx, out_dist, out_mean, emit_rows)
+        _knn_blocks(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, queries,
+                    *geometry, _brute_cells(grid.n), self_slots, out_idx, out_dist, out_mean, emit_rows)
 
 
 def default_points_per_cell(k: int) -> float:

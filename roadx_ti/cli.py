@@ -123,6 +123,10 @@ def main(argv: list[str] | None = None) -> int:
     except (InputError, DataError) as exc:
         print(f"roadx_ti: {exc}", file=sys.stderr)
         return EXIT_DATA
+    except BrokenPipeError:
+        # `roadx_ti info x | head`: the reader left; not an error of ours
+        sys.stderr.close()
+        return EXIT_OK
     except KeyboardInterrupt:
         print("roadx_ti: interrupted; no output was written", file=sys.stderr)
         return 130
