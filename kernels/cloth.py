@@ -14,7 +14,7 @@ Follows the `cloth-simulation-filter` package (jianboqi/CSF) step by step, in it
   every particle's constraint pass over its 16 neighbours (distance 1 and 2 in x, y and diagonal)
   with the package's rigidness coefficients, max displacement of movable particles, collision
   (a particle below its collision height is put on it and becomes immovable); stop after
-  `iterations` or when 0 < max displacement < 0.005;
+  `iterations` or when max displacement < 0.005 (the package needs > 0 too: see _stop_test);
 - optional slope smoothing (bSloopSmooth): in movable components of more than 50 particles,
   particles connected to an immovable one through collision-height steps below 0.3 are snapped to
   their collision height;
@@ -336,7 +336,9 @@ def _stop_test(band_max: ti.template(), state: ti.template(), iterations):
         largest_key = ti.max(largest_key, band_max[b])
     state[1] += 1
     largest = f32_from_order_key(largest_key)
-    if (largest != 0.0 and largest < STOP_DISPLACEMENT) or state[1] >= iterations:
+    # the package also requires largest != 0; a largest displacement of exactly 0 means no particle
+    # can move any more (gravity moves every movable one), so stopping then changes nothing
+    if largest < STOP_DISPLACEMENT or state[1] >= iterations:
         state[0] = 1
 
 
