@@ -46,8 +46,15 @@ def _hardware_gpu_present() -> bool:
     return bool(glob.glob("/dev/dri/renderD*") or os.path.exists("/dev/nvidia0"))
 
 
+def _cuda_present() -> bool:
+    import ctypes.util
+
+    return os.path.exists("/dev/nvidia0") or ctypes.util.find_library("cuda") is not None
+
+
 def _auto_candidates() -> list[str]:
-    order = ["cuda"]
+    # only try what can be there: a failed try costs time and prints Taichi warnings
+    order = ["cuda"] if _cuda_present() else []
     if sys.platform == "darwin":
         order.append("metal")
     elif _hardware_gpu_present():

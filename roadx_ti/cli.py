@@ -218,6 +218,13 @@ def cmd_run(args) -> int:
         acc = summary["accuracy"]
         log.info("accuracy vs classes %s: type I %.2f %%, type II %.2f %%, total %.2f %%, kappa %.4f",
                  cfg.truth_classes, 100 * acc["type1"], 100 * acc["type2"], 100 * acc["total"], acc["kappa"])
+    if cfg.output.dtm:
+        if "cloth" not in ctx.facts:
+            log.warning("output.dtm: no cloth stage ran, so there is no DTM to write")
+        else:
+            from roadx_ti import dtm
+            dtm.write(cfg.output.dtm, *ctx.facts["cloth"])
+            summary["dtm"] = cfg.output.dtm
     from roadx_ti import report
     report.write_json(paths["summary"], summary)
     with io.atomic_output(paths["config"]) as tmp:

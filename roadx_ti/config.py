@@ -42,9 +42,19 @@ class OutputConfig(_Strict):
         "all", description="all: every input point in input order (label transfer for points "
         "skipped by downsampling); processed: only the points that reached the last stage")
     report_png: bool = Field(True, description="write a top-view PNG beside the output")
+    dtm: str | None = Field(None, description="write the cloth of the last cloth stage as a DTM raster "
+                            "(.asc ESRI ASCII grid, or .npy with a .json transform)")
     mode: Literal["merged", "per-file"] = Field(
         "merged", description="tiled runs over several files: one merged output in input order, or "
         "one output per input file in the output folder")
+
+
+    @field_validator("dtm")
+    @classmethod
+    def _dtm_format(cls, value):
+        if value is not None and Path(value).suffix.lower() not in (".asc", ".npy"):
+            raise ValueError("a DTM is written as .asc (ESRI ASCII grid) or .npy (+ .json transform)")
+        return value
 
 
 class TilingConfig(_Strict):

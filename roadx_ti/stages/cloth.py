@@ -65,6 +65,7 @@ class ClothSmooth(Stage):
         if cloud.n == 0:
             return StageResult()
         result = _run_cloth(self.options, cloud)
+        ctx.facts["cloth"] = (result, cloud.origin)   # for a DTM export (output.dtm)
         return StageResult(keep=result.ground, info=_info(result))
 
 
@@ -77,6 +78,7 @@ class ClothGround(Stage):
         if cloud.n == 0:
             return StageResult()
         result = _run_cloth(self.options, cloud)
+        ctx.facts["cloth"] = (result, cloud.origin)   # for a DTM export (output.dtm)
         keep = ~result.ground
         # aligned with the working points; the pipeline narrows it to the kept ones
         height = result.height_above(cloud.xyz)
