@@ -22,7 +22,13 @@ def sym_eigen3(a: ti.math.mat3):
     scale = ti.max(ti.abs(a).max(), 1e-30)
     m = a / scale
     v = ti.math.mat3([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-    for _ in range(_JACOBI_SWEEPS):
+    sweep = 0
+    while sweep < _JACOBI_SWEEPS:
+        # converged: the off-diagonal part is below float32 resolution of the diagonal
+        off = ti.abs(m[0, 1]) + ti.abs(m[0, 2]) + ti.abs(m[1, 2])
+        if off <= 1e-9 * (ti.abs(m[0, 0]) + ti.abs(m[1, 1]) + ti.abs(m[2, 2])):
+            break
+        sweep += 1
         for pair in ti.static(range(3)):
             p = ti.static((0, 0, 1)[pair])
             q = ti.static((1, 2, 2)[pair])

@@ -23,6 +23,7 @@ from .scan import exclusive_scan_into
 # Large primes of the classic spatial hash (Teschner et al. 2003).
 _P1, _P2, _P3 = 73856093, 19349663, 83492791
 _MAX_CELL_COORD = 2**30
+_BOUNDS_CHUNK = 16384
 
 
 @dataclass
@@ -38,7 +39,15 @@ class Grid:
     sorted_xyz: object         # (n, 3) f32: xyz[order]
     sorted_cell: object        # (n, 3) i32: cell coordinates of xyz[order]
     extent: tuple              # float32 bounding-box size x, y, z
-    cell_start: object = None  # (cells+1,) i32: sorted positions where each occupied cell's run starts
+    _cell_start: object = None
+
+    @property
+    def cell_start(self):
+        """(cells+1,) i32: sorted position where each occupied cell's run starts, then n
+        (computed on first use)."""
+        if self._cell_start is None:
+            self._cell_start = _cell_runs(self.sorted_cell, self.n)
+        return self._cell_start
 
     @property
     def n_cells(self) -> int:
@@ -87,72 +96,97 @@ def cell_less(a: ti.math.ivec3, ia: ti.i32, b: ti.math.ivec3, ib: ti.i32) -> ti.
 
 @ti.kernel
 def _bounds(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), lo_key: ti.types.ndarray(dtype=ti.i32, ndim=1),
-            hi_key: ti.types.ndarray(dtype=ti.i32, ndim=1)):
-    for i in range(xyz.shape[0]):
+            hi_key: ti.types.ndarray(dtype=ti.i32, ndim=1), chunk: ti.i32):
+    # one chunk of points per iteration, reduced in registers: a handful of atomics per chunk
+    # instead of six contended ones per point
+    n = xyz.shape[0]
+    for t in range((n + chunk - 1) // chunk):
+        lo = ti.math.ivec3(INT32_MAX)
+        hi = ti.math.ivec3(-INT32_MAX - 1)
+        for i in range(t * chunk, ti.min(t * chunk + chunk, n)):
+            for a in ti.static(range(3)):
+                key = f32_order_key(xyz[i, a])
+                lo[a] = ti.min(lo[a], key)
+                hi[a] = ti.max(hi[a], key)
         for a in ti.static(range(3)):
-            key = f32_order_key(xyz[i, a])
-            ti.atomic_min(lo_key[a], key)
-            ti.atomic_max(hi_key[a], key)
+            ti.atomic_min(lo_key[a], lo[a])
+            ti.atomic_max(hi_key[a], hi[a])
 
 
 @ti.kernel
-def _assign_cells(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.types.ndarray(dtype=ti.i32, ndim=2),
-                  bucket: ti.types.ndarray(dtype=ti.i32, ndim=1), count: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                  ox: ti.f32, oy: ti.f32, oz: ti.f32, inv_cell: ti.f32, mask: ti.i32):
+def _count_buckets(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), count: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                   ox: ti.f32, oy: ti.f32, oz: ti.f32, inv_cell: ti.f32, mask: ti.i32):
     for i in range(xyz.shape[0]):
         c = cell_of(xyz[i, 0], xyz[i, 1], xyz[i, 2], ox, oy, oz, inv_cell)
-        for a in ti.static(range(3)):
-            cell[i, a] = c[a]
-        b = cell_hash(c, mask)
-        bucket[i] = b
-        ti.atomic_add(count[b], 1)
+        ti.atomic_add(count[cell_hash(c, mask)], 1)
 
 
 @ti.kernel
-def _scatter(bucket: ti.types.ndarray(dtype=ti.i32, ndim=1), start: ti.types.ndarray(dtype=ti.i32, ndim=1),
-             cursor: ti.types.ndarray(dtype=ti.i32, ndim=1), order: ti.types.ndarray(dtype=ti.i32, ndim=1)):
-    for i in range(bucket.shape[0]):
-        b = bucket[i]
-        order[start[b] + ti.atomic_add(cursor[b], 1)] = i
+def _copy_i32(src: ti.types.ndarray(dtype=ti.i32, ndim=1), dst: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in range(src.shape[0]):
+        dst[i] = src[i]
+
+
+@ti.kernel
+def _scatter(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
+             cursor: ti.types.ndarray(dtype=ti.i32, ndim=1), ox: ti.f32, oy: ti.f32, oz: ti.f32,
+             inv_cell: ti.f32, mask: ti.i32, order: ti.types.ndarray(dtype=ti.i32, ndim=1),
+             sorted_xyz: ti.types.ndarray(dtype=ti.f32, ndim=2)):
+    # the point goes straight to its bucket slot with its coordinates (sequential reads,
+    # scattered writes); the order inside a bucket depends on thread timing until _sort_buckets
+    for i in range(xyz.shape[0]):
+        c = cell_of(xyz[i, 0], xyz[i, 1], xyz[i, 2], ox, oy, oz, inv_cell)
+        pos = ti.atomic_add(cursor[cell_hash(c, mask)], 1)   # cursor starts at the bucket's start
+        order[pos] = i
+        for a in ti.static(range(3)):
+            sorted_xyz[pos, a] = xyz[i, a]
+
+
+@ti.kernel
+def _sorted_cells(sorted_xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), sorted_cell: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                  ox: ti.f32, oy: ti.f32, oz: ti.f32, inv_cell: ti.f32):
+    for s in range(sorted_xyz.shape[0]):
+        c = cell_of(sorted_xyz[s, 0], sorted_xyz[s, 1], sorted_xyz[s, 2], ox, oy, oz, inv_cell)
+        for a in ti.static(range(3)):
+            sorted_cell[s, a] = c[a]
 
 
 @ti.kernel
 def _sort_buckets(start: ti.types.ndarray(dtype=ti.i32, ndim=1), order: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                  cell: ti.types.ndarray(dtype=ti.i32, ndim=2), n_buckets: ti.i32):
-    # Shell sort of each bucket by (cell, index): in place, O(m^1.3), fine for the occasional
-    # bucket of thousands (duplicated points, coarse voxels).
+                  sorted_xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), sorted_cell: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                  n_buckets: ti.i32):
+    # Shell sort of each bucket by (cell, index), moving the coordinates along: in place,
+    # O(m^1.3), fine for the occasional bucket of thousands (duplicated points, coarse voxels).
+    ti.loop_config(block_dim=4096)
     for b in range(n_buckets):
         lo = start[b]
         m = start[b + 1] - lo
-        gap = 1
-        while gap * 3 + 1 < m:
-            gap = gap * 3 + 1
-        while gap >= 1:
-            for i in range(lo + gap, lo + m):
-                v = order[i]
-                cv = ti.math.ivec3(cell[v, 0], cell[v, 1], cell[v, 2])
-                j = i
-                while j >= lo + gap:
-                    u = order[j - gap]
-                    cu = ti.math.ivec3(cell[u, 0], cell[u, 1], cell[u, 2])
-                    if cell_less(cv, v, cu, u):
-                        order[j] = u
-                        j -= gap
-                    else:
-                        break
-                order[j] = v
-            gap = gap // 3
-
-
-@ti.kernel
-def _gather(order: ti.types.ndarray(dtype=ti.i32, ndim=1), xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
-            cell: ti.types.ndarray(dtype=ti.i32, ndim=2), sorted_xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
-            sorted_cell: ti.types.ndarray(dtype=ti.i32, ndim=2)):
-    for s in range(order.shape[0]):
-        i = order[s]
-        for a in ti.static(range(3)):
-            sorted_xyz[s, a] = xyz[i, a]
-            sorted_cell[s, a] = cell[i, a]
+        if m > 1:
+            gap = 1
+            while gap * 3 + 1 < m:
+                gap = gap * 3 + 1
+            while gap >= 1:
+                for i in range(lo + gap, lo + m):
+                    v = order[i]
+                    cv = ti.math.ivec3(sorted_cell[i, 0], sorted_cell[i, 1], sorted_cell[i, 2])
+                    pv = ti.math.vec3(sorted_xyz[i, 0], sorted_xyz[i, 1], sorted_xyz[i, 2])
+                    j = i
+                    while j >= lo + gap:
+                        u = order[j - gap]
+                        cu = ti.math.ivec3(sorted_cell[j - gap, 0], sorted_cell[j - gap, 1], sorted_cell[j - gap, 2])
+                        if cell_less(cv, v, cu, u):
+                            order[j] = u
+                            for a in ti.static(range(3)):
+                                sorted_cell[j, a] = cu[a]
+                                sorted_xyz[j, a] = sorted_xyz[j - gap, a]
+                            j -= gap
+                        else:
+                            break
+                    order[j] = v
+                    for a in ti.static(range(3)):
+                        sorted_cell[j, a] = cv[a]
+                        sorted_xyz[j, a] = pv[a]
+                gap = gap // 3
 
 
 def bounding_box(xyz):
@@ -161,7 +195,7 @@ def bounding_box(xyz):
     hi = ndarray(ti.i32, (3,))
     lo.from_numpy(np.full(3, INT32_MAX, np.int32))
     hi.from_numpy(np.full(3, -INT32_MAX - 1, np.int32))
-    _bounds(xyz, lo, hi)
+    _bounds(xyz, lo, hi, _BOUNDS_CHUNK)
 
     def decode(keys):
         bits = keys.to_numpy()
@@ -187,10 +221,31 @@ def _check_xyz(xyz):
         raise ValueError(f"xyz must have shape (n, 3), got {tuple(xyz.shape)}")
 
 
+_SCRATCH = {}
+
+
+def scratch(name: str, dtype, shape):
+    """A work ndarray reused between calls (the latest shape per name): no allocation and no
+    page faults on repeated calls of the same size. Never hand one to a caller: the next call
+    with the same name overwrites it. Contents are undefined (``fill`` what must start at 0)."""
+    shape = tuple(int(v) for v in shape)
+    arr = _SCRATCH.get(name)
+    if arr is None or tuple(arr.shape) != shape or arr.dtype != dtype:
+        arr = ndarray(dtype, shape)
+        _SCRATCH[name] = arr
+    return arr
+
+
 def build_grid(xyz, cell_size=None, *, points_per_cell: float = 8.0) -> Grid:
     """Sparse hashed grid over ``xyz`` (n, 3) float32 (numpy or Taichi ndarray).
 
     ``cell_size`` None picks one from the point density (``auto_cell_size``)."""
+    return build_grid_into(xyz, cell_size, points_per_cell, private=False)
+
+
+def build_grid_into(xyz, cell_size, points_per_cell: float, *, private: bool) -> Grid:
+    """``build_grid``; ``private`` = the grid never leaves the calling wrapper, so its arrays may
+    be scratch buffers (valid until the next private grid is built)."""
     _check_xyz(xyz)
     pts = as_ndarray(xyz, np.float32)
     n = length(pts)
@@ -210,29 +265,30 @@ def build_grid(xyz, cell_size=None, *, points_per_cell: float = 8.0) -> Grid:
     table = 1 << max(6, int(math.ceil(math.log2(max(2 * n, 1)))))
     mask = table - 1
     ox, oy, oz = (float(v) for v in lo)
-    cell = ndarray(ti.i32, (max(n, 1), 3))
-    bucket = ndarray(ti.i32, (max(n, 1),))
-    count = ndarray(ti.i32, (table + 1,))   # zero-initialised; the extra slot makes start[table] = n
-    start = ndarray(ti.i32, (table + 1,))
-    order = ndarray(ti.i32, (n,))
-    sorted_xyz = ndarray(ti.f32, (n, 3))
-    sorted_cell = ndarray(ti.i32, (n, 3))
+    def alloc(name, dtype, shape):
+        return scratch("grid." + name, dtype, shape) if private else ndarray(dtype, shape)
+    count = scratch("grid.count", ti.i32, (table + 1,))   # the extra slot makes start[table] = n
+    count.fill(0)
+    start = alloc("start", ti.i32, (table + 1,))
+    order = alloc("order", ti.i32, (max(n, 1),))
+    sorted_xyz = alloc("sorted_xyz", ti.f32, (max(n, 1), 3))
+    sorted_cell = alloc("sorted_cell", ti.i32, (max(n, 1), 3))
     if n:
-        _assign_cells(pts, cell, bucket, count, ox, oy, oz, float(inv_cell), mask)
+        geometry = (ox, oy, oz, float(inv_cell), mask)
+        _count_buckets(pts, count, *geometry)
         exclusive_scan_into(count, start)
-        cursor = ndarray(ti.i32, (table,))
-        _scatter(bucket, start, cursor, order)
-        _sort_buckets(start, order, cell, table)
-        _gather(order, pts, cell, sorted_xyz, sorted_cell)
+        _copy_i32(start, count)                 # count becomes the scatter cursor
+        _scatter(pts, count, *geometry, order, sorted_xyz)
+        _sorted_cells(sorted_xyz, sorted_cell, ox, oy, oz, float(inv_cell))
+        _sort_buckets(start, order, sorted_xyz, sorted_cell, table)
     return Grid(n=n, cell_size=cell_size, inv_cell=float(inv_cell), origin=(ox, oy, oz),
                 table_mask=mask, order=order, bucket_start=start, sorted_xyz=sorted_xyz,
-                sorted_cell=sorted_cell, extent=tuple(float(v) for v in extent),
-                cell_start=_cell_runs(sorted_cell, n))
+                sorted_cell=sorted_cell, extent=tuple(float(v) for v in extent))
 
 
 def _cell_runs(sorted_cell, n: int):
     """Start of every cell's run in the sorted order, plus n at the end."""
-    first = ndarray(ti.i32, (max(n, 1),))
+    first = scratch("runs.first", ti.i32, (max(n, 1),))
     if n:
         _mark_runs(sorted_cell, first)
     runs = mask_to_indices(first) if n else ndarray(ti.i32, (0,))
@@ -328,7 +384,7 @@ def compact_mask(mask):
     """(ascending indices of the non-zero entries of an int32 ndarray mask, their count); the
     indices are None when there are none (Taichi has no empty ndarrays)."""
     n = length(mask)
-    prefix = ndarray(ti.i32, (max(n, 1),))
+    prefix = scratch("compact.prefix", ti.i32, (max(n, 1),))
     total = exclusive_scan_into(mask, prefix) if n else 0
     if not total:
         return None, 0
@@ -347,10 +403,11 @@ def voxel_downsample(xyz, voxel_size: float):
     """Indices (ascending, int32) of one real point per occupied voxel of edge ``voxel_size``:
     the point nearest the voxel's centroid, ties to the lower index. Voxels are
     ``floor((p - bbox_min) / voxel_size)``. Returns numpy for numpy input, an ndarray otherwise."""
-    grid = build_grid(xyz, voxel_size)
-    keep = ndarray(ti.i32, (max(grid.n, 1),))
+    grid = build_grid_into(xyz, voxel_size, 8.0, private=True)
+    keep = scratch("voxel.keep", ti.i32, (max(grid.n, 1),))
+    keep.fill(0)
     if grid.n:
-        offset = ndarray(ti.f32, (grid.n, 3))
+        offset = scratch("voxel.offset", ti.f32, (grid.n, 3))
         ox, oy, oz = grid.origin
         _voxel_offsets(grid.sorted_xyz, grid.sorted_cell, ox, oy, oz, grid.cell_size, offset)
         _voxel_pick(offset, grid.sorted_cell, grid.order, keep)

@@ -26,7 +26,7 @@ import numpy as np
 import taichi as ti
 
 from .common import as_ndarray, length, like_input, ndarray
-from .grid import Grid, build_grid, cell_hash, compact_mask
+from .grid import Grid, build_grid, build_grid_into, cell_hash, compact_mask, scratch
 from .scan import exclusive_scan_into
 
 SMALL_K = 32
@@ -146,6 +146,24 @@ def _heap_emit(heap_key: ti.template(), heap_idx: ti.template(), size: ti.i32, k
                out_mean: ti.template(), emit_rows: ti.template()):
     """Write the row (ascending (distance, index)) or its mean (summed in that canonical order,
     so every scan order gives the same bits)."""
+    # the list is ordered by (squared distance, index); distances are their float32 square
+    # roots, which may tie where the squares differ: an insertion pass restores (distance,
+    # index) order among such ties
+    for r in range(k):
+        heap_key[r] = ti.bit_cast(ti.sqrt(ti.bit_cast(heap_key[r], ti.f32)), ti.i32)
+    for r in range(1, k):
+        key = heap_key[r]
+        idx = heap_idx[r]
+        pos = r
+        while pos > 0:
+            if _pair_less(key, idx, heap_key[pos - 1], heap_idx[pos - 1]):
+                heap_key[pos] = heap_key[pos - 1]
+                heap_idx[pos] = heap_idx[pos - 1]
+                pos -= 1
+            else:
+                break
+        heap_key[pos] = key
+        heap_idx[pos] = idx
     dist_sum = 0.0
     for r in range(k):
         dist = ti.bit_cast(heap_key[r], ti.f32)
@@ -163,25 +181,19 @@ def _offer_run(lo: ti.i32, hi: ti.i32, s: ti.i32, q: ti.math.vec3, heap_key: ti.
                heap_idx: ti.template(), size: ti.i32, k: ti.i32, order: ti.template(),
                sxyz: ti.template(), bound: ti.f32) -> ti.i32:
     """Offer the points at sorted positions [lo, hi) (except s, the query) that lie within
-    ``bound`` (an upper bound on the k-th distance, +inf when none is known) to the list."""
-    top = _INF_KEY
+    ``bound`` (an upper bound on the k-th distance, +inf when none is known) to the list of
+    the k smallest (squared distance, index) pairs."""
+    # keys are the float bits of squared distances (ordered as the floats, no sqrt per candidate)
+    top = ti.bit_cast(bound * bound * 1.00001, ti.i32)
     if size == k:
-        top = heap_key[k - 1]
-    # squared distances prefilter: sqrt only for candidates that can enter the list (the
-    # relative margin keeps every candidate whose float32 distance ties the k-th)
-    top_d = ti.min(ti.bit_cast(top, ti.f32), bound)
-    top_d2 = top_d * top_d * 1.000001
+        top = ti.min(top, heap_key[k - 1])
     for j in range(lo, hi):
         p = ti.math.vec3(sxyz[j, 0], sxyz[j, 1], sxyz[j, 2]) - q
-        d2 = p.dot(p)
-        if d2 <= top_d2 and j != s:
-            key = ti.bit_cast(ti.sqrt(d2), ti.i32)
-            if key <= top:
-                size = _heap_offer(heap_key, heap_idx, size, k, key, order[j])
-                if size == k:
-                    top = heap_key[k - 1]
-                    top_d = ti.min(ti.bit_cast(top, ti.f32), bound)
-                    top_d2 = top_d * top_d * 1.000001
+        key = ti.bit_cast(p.dot(p), ti.i32)
+        if key <= top and j != s:
+            size = _heap_offer(heap_key, heap_idx, size, k, key, order[j])
+            if size == k:
+                top = ti.min(top, heap_key[k - 1])
     return size
 
 
@@ -252,11 +264,11 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
                 d = ti.math.ivec3(t % 3 - 1, (t // 3) % 3 - 1, t // 9 - 1)
                 reach = bound
                 if size == k:
-                    reach = ti.min(reach, ti.bit_cast(heap_key[k - 1], ti.f32))
+                    reach = ti.min(reach, ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32)))
                 if _box_distance(u, c, d, cell_size) <= reach:
                     size = _offer_run(run_lo[r], run_hi[r], s, q, heap_key, heap_idx, size, k, order, sxyz, bound)
             settled = 0
-            if size == k and ti.bit_cast(heap_key[k - 1], ti.f32) < _safe_radius(u, c, 1, cell_size):
+            if size == k and ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32)) < _safe_radius(u, c, 1, cell_size):
                 settled = 1
             else:
                 for t in range(125):
@@ -264,15 +276,15 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
                     if ti.abs(d).max() == 2:
                         reach = bound
                         if size == k:
-                            reach = ti.min(reach, ti.bit_cast(heap_key[k - 1], ti.f32))
+                            reach = ti.min(reach, ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32)))
                         if _box_distance(u, c, d, cell_size) <= reach:
                             rg = _cell_run(c + d, bstart, scell, mask)
                             size = _offer_run(rg[0], rg[1], s, q, heap_key, heap_idx, size, k, order, sxyz, bound)
-                if size == k and ti.bit_cast(heap_key[k - 1], ti.f32) < _safe_radius(u, c, 2, cell_size):
+                if size == k and ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32)) < _safe_radius(u, c, 2, cell_size):
                     settled = 1
             if size == k:
                 prev_q = q
-                prev_kth = ti.bit_cast(heap_key[k - 1], ti.f32)
+                prev_kth = ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32))
             if settled:
                 _heap_emit(heap_key, heap_idx, size, k, order[s], self_slots, out_idx, out_dist,
                            out_mean, emit_rows)
@@ -326,7 +338,7 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                             d = ti.math.ivec3(dx, dy, dz)
                             visit = 1
                             if size == k:
-                                if _box_distance(u, cb, d, block_size) > ti.bit_cast(heap_key[k - 1], ti.f32):
+                                if _box_distance(u, cb, d, block_size) > ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32)):
                                     visit = 0
                             if visit:
                                 target = cb + d
@@ -336,7 +348,7 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                                             and scell[j, 2] >> _BLOCK_BITS == target[2]:
                                         size = _offer_run(j, j + 1, s, q, heap_key, heap_idx, size, k, order, sxyz, ti.math.inf)
                             dx += step
-                if size == k and ti.bit_cast(heap_key[k - 1], ti.f32) < _safe_radius(u, cb, ring, block_size):
+                if size == k and ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32)) < _safe_radius(u, cb, ring, block_size):
                     done = 1
                 else:
                     ring += 1
@@ -621,7 +633,7 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
 
 def _prepare(xyz, k, grid, cell_size, points_per_cell):
     if grid is None:
-        grid = build_grid(xyz, cell_size, points_per_cell=points_per_cell)
+        grid = build_grid_into(xyz, cell_size, points_per_cell, private=True)
     elif grid.n != length(xyz):
         raise ValueError(f"grid was built over {grid.n} points, xyz has {length(xyz)}")
     return grid
@@ -649,7 +661,7 @@ def _run_scan(grid: Grid, k: int, out_idx, out_dist, out_mean, emit_rows: bool, 
         _knn_select(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, *geometry,
                     _brute_cells(grid.n), self_slots, out_idx, out_dist, out_mean, emit_rows)
         return
-    pending = ndarray(ti.i32, (grid.n,))
+    pending = scratch("knn.pending", ti.i32, (grid.n,))
     _knn_cells(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, grid.cell_start,
                *geometry, self_slots, pending, out_idx, out_dist, out_mean, emit_rows)
     queries, n_pending = compact_mask(pending)
@@ -659,10 +671,11 @@ def _run_scan(grid: Grid, k: int, out_idx, out_dist, out_mean, emit_rows: bool, 
 
 
 def default_points_per_cell(k: int) -> float:
-    """Cells of about k/2 points on a surface for small k (the 3x3 cells around a query then
-    hold its k nearest in most cases); finer cells for large k, where the passes skip cells
-    whose box lies beyond the current bound, so fewer wasted candidates are scanned."""
-    return max(4.0, k / 2.0) if k <= SMALL_K else max(16.0, k / PPC_DIV)
+    """Cells of about 1.25 k points on a surface for small k (the 3x3 cells around a query then hold
+    its k nearest nearly always, and few queries need the second ring or the block search);
+    finer cells for large k, where the passes skip cells whose box lies beyond the current
+    bound, so fewer wasted candidates are scanned."""
+    return max(8.0, 1.25 * k) if k <= SMALL_K else max(16.0, k / PPC_DIV)
 
 
 def knn(xyz, k: int, *, grid: Grid = None, cell_size: float = None):

@@ -20,6 +20,23 @@ P3 semantics (order independent, so a data-parallel run equals a sequential one)
 - a non-expandable active point joined by a growth edge (either direction) to a roof core point
   is a leaf of that roof: it takes the smallest such segment label (integer atomic min);
 - every other point is -1.
+
+Footprint completion (after P4, attach_to_footprints): a roof segment's plan-view footprint also
+holds points the plane growth cannot reach: walls below the roof edge, chimneys and roof units
+standing on it, roof points under overhanging foliage (their orthophoto colour is the tree's).
+On a 2D grid of the kept roof points (per cell: lowest roof point index, roof z range), a
+non-roof point q joins a roof when
+- q is *inside* a footprint: along each of +x, -x, +y, -y a roof cell lies within inside_reach
+  (q's own cell counts); it takes the segment of the nearest such cell and joins when it lies on
+  that cell's roof surface (z within [z_min - surface_tol, z_max + surface_tol], any colour), or
+  below the roof in a cell holding roof points (a wall return under its own roof edge, any colour:
+  walls of flat roofs carry the orthophoto colour of the lawn beside them), or when it may join
+  off the surface (off_surface_ok: the caller passes "not vegetation-coloured");
+- else q is *under a roof edge*: a roof cell within wall_reach (square window) has its lowest roof
+  point above z(q) + surface_tol, and off_surface_ok(q); it takes the segment of the nearest such
+  cell (ties: lower cell id).
+Every decision reads only the grid built from the roof points before any point joins, so the
+result does not depend on order (one pass, no chains).
 """
 
 import math
@@ -27,7 +44,7 @@ import math
 import numpy as np
 import taichi as ti
 
-from .common import INT32_MAX, as_ndarray, length, like_input, ndarray
+from .common import INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, length, like_input, ndarray
 
 
 def required_planar_neighbours(plane_coef: float, k: int) -> int:
@@ -246,5 +263,141 @@ def grow_roof_segments(knn_indices, edge_ok, seed, *, curvature=None, expand_cur
     return like_input(label, knn_indices)
 
 
+
+@ti.func
+def _cell_index(x: ti.f32, y: ti.f32, x0: ti.f32, y0: ti.f32, cell: ti.f32, n_cols: ti.i32,
+                n_rows: ti.i32) -> ti.math.ivec2:
+    col = ti.cast(ti.floor((x - x0) / cell), ti.i32)
+    row = ti.cast(ti.floor((y - y0) / cell), ti.i32)
+    return ti.math.ivec2(col, row)
+
+
+@ti.kernel
+def _footprint_cells(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                     segment: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                     x0: ti.f32, y0: ti.f32, cell: ti.f32, n_cols: ti.i32, n_rows: ti.i32,
+                     first: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                     z_low: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                     z_high: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in segment:
+        if segment[i] >= 0:
+            c = _cell_index(xyz[i, 0], xyz[i, 1], x0, y0, cell, n_cols, n_rows)
+            k = c[1] * n_cols + c[0]
+            ti.atomic_min(first[k], i)
+            key = f32_order_key(xyz[i, 2])
+            ti.atomic_min(z_low[k], key)
+            ti.atomic_max(z_high[k], key)
+
+
+@ti.kernel
+def _attach_footprint(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                      segment: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                      off_surface_ok: ti.types.ndarray(dtype=ti.u8, ndim=1),
+                      eligible: ti.types.ndarray(dtype=ti.u8, ndim=1),
+                      x0: ti.f32, y0: ti.f32, cell: ti.f32, n_cols: ti.i32, n_rows: ti.i32,
+                      first: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                      z_low: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                      z_high: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                      inside_cells: ti.i32, wall_cells: ti.i32, surface_tol: ti.f32,
+                      out: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in segment:
+        label = segment[i]
+        if label < 0 and eligible[i] != 0:
+            c = _cell_index(xyz[i, 0], xyz[i, 1], x0, y0, cell, n_cols, n_rows)
+            z = xyz[i, 2]
+            if c[0] >= 0 and c[0] < n_cols and c[1] >= 0 and c[1] < n_rows:
+                # inside test: the first roof cell along each axis direction
+                hits = 0
+                best_d = INT32_MAX
+                best_k = -1
+                for d in range(4):
+                    dx = 1 if d == 0 else (-1 if d == 1 else 0)
+                    dy = 1 if d == 2 else (-1 if d == 3 else 0)
+                    found = 0
+                    for s in range(inside_cells + 1):
+                        if found == 0:
+                            cc = c[0] + dx * s
+                            rr = c[1] + dy * s
+                            if cc >= 0 and cc < n_cols and rr >= 0 and rr < n_rows:
+                                k = rr * n_cols + cc
+                                if first[k] != INT32_MAX:
+                                    found = 1
+                                    if s < best_d or (s == best_d and k < best_k):
+                                        best_d = s
+                                        best_k = k
+                    hits += found
+                if hits == 4:
+                    lo = f32_from_order_key(z_low[best_k])
+                    hi = f32_from_order_key(z_high[best_k])
+                    on_surface = z >= lo - surface_tol and z <= hi + surface_tol
+                    # below the roof in a roof cell: a wall or eave return under the roof edge
+                    under_own = best_d == 0 and z < lo - surface_tol
+                    if on_surface or under_own or off_surface_ok[i] != 0:
+                        label = segment[first[best_k]]
+                elif off_surface_ok[i] != 0:
+                    # under a roof edge: a roof cell nearby whose lowest roof point is above z
+                    best_d = INT32_MAX
+                    best_k = -1
+                    for oy in range(-wall_cells, wall_cells + 1):
+                        for ox in range(-wall_cells, wall_cells + 1):
+                            cc = c[0] + ox
+                            rr = c[1] + oy
+                            if cc >= 0 and cc < n_cols and rr >= 0 and rr < n_rows:
+                                k = rr * n_cols + cc
+                                if first[k] != INT32_MAX:
+                                    if f32_from_order_key(z_low[k]) > z + surface_tol:
+                                        dist = ox * ox + oy * oy
+                                        if dist < best_d or (dist == best_d and k < best_k):
+                                            best_d = dist
+                                            best_k = k
+                    if best_k >= 0:
+                        label = segment[first[best_k]]
+        out[i] = label
+
+
+def attach_to_footprints(xyz, segment, off_surface_ok=None, eligible=None, *, cell: float = 1.0,
+                         inside_reach: float = 3.0, wall_reach: float = 1.0,
+                         surface_tol: float = 0.5):
+    """Segment label per point (int32 (n,)) after footprint completion (module docstring).
+
+    xyz (n, 3) in m; segment (n,) int32 roof segment ids, -1 = none; off_surface_ok (n,) uint8
+    (default all 1): points that may join off a roof surface (inside a footprint above or below
+    it, or under a roof edge); eligible (n,) uint8 (default all 1): points that may join at all
+    (the stage passes "high enough above ground"). cell, inside_reach, wall_reach, surface_tol in m.
+    """
+    if cell <= 0:
+        raise ValueError(f"cell must be > 0, got {cell}")
+    pts = as_ndarray(xyz, "float32")
+    seg = as_ndarray(segment, "int32")
+    n = length(seg)
+    out = ndarray(ti.i32, (n,))
+    seg_np = seg.to_numpy() if hasattr(seg, "to_numpy") else np.asarray(seg)
+    roof = seg_np >= 0
+    if n == 0 or not roof.any():
+        if n:
+            out.from_numpy(seg_np.astype(np.int32))
+        return like_input(out, segment)
+    xy = (pts.to_numpy() if hasattr(pts, "to_numpy") else np.asarray(pts))[roof, :2]
+    margin = max(inside_reach, wall_reach) + cell
+    x0, y0 = float(xy[:, 0].min() - margin), float(xy[:, 1].min() - margin)
+    n_cols = int(np.floor((xy[:, 0].max() + margin - x0) / cell)) + 1
+    n_rows = int(np.floor((xy[:, 1].max() + margin - y0) / cell)) + 1
+    if n_cols * n_rows >= INT32_MAX:
+        raise ValueError(f"a {n_cols} x {n_rows} footprint grid at {cell} m exceeds 32-bit indexing; tile the input")
+    first = ndarray(ti.i32, (n_cols * n_rows,))
+    z_low = ndarray(ti.i32, (n_cols * n_rows,))
+    z_high = ndarray(ti.i32, (n_cols * n_rows,))
+    first.fill(INT32_MAX)
+    z_low.fill(INT32_MAX)
+    z_high.fill(-INT32_MAX - 1)
+    ok = as_ndarray(np.ones(n, np.uint8) if off_surface_ok is None else off_surface_ok, "uint8")
+    _footprint_cells(pts, seg, x0, y0, float(cell), n_cols, n_rows, first, z_low, z_high)
+    elig = as_ndarray(np.ones(n, np.uint8) if eligible is None else eligible, "uint8")
+    _attach_footprint(pts, seg, ok, elig, x0, y0, float(cell), n_cols, n_rows, first, z_low, z_high,
+                      int(math.ceil(round(inside_reach / cell, 9))),
+                      int(math.ceil(round(wall_reach / cell, 9))), float(surface_tol), out)
+    return like_input(out, segment)
+
+
 __all__ = ["seed_constraints", "required_planar_neighbours", "roof_growth_edges",
-           "grow_roof_segments"]
+           "grow_roof_segments", "attach_to_footprints"]

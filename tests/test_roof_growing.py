@@ -230,3 +230,119 @@ def test_roof_stages_on_synthetic_plot(ti_arch, with_colour, caplog):
     assert set(infos["roof_seeds"]["removed_by"]) == {"planar", "compact", "gradient"}
     assert infos["roof_growing"]["color_rule"] == with_colour
     assert ("no colour" in caplog.text) == (not with_colour)
+
+
+def reference_attach(xyz, segment, off_ok, eligible, cell, inside_reach, wall_reach, tol):
+    """Footprint completion of kernels/seeds.attach_to_footprints, written out per point."""
+    roof = segment >= 0
+    margin = max(inside_reach, wall_reach) + cell
+    x0 = np.float32(xyz[roof, 0].min() - margin)
+    y0 = np.float32(xyz[roof, 1].min() - margin)
+    n_cols = int(np.floor((xyz[roof, 0].max() + margin - x0) / cell)) + 1
+    n_rows = int(np.floor((xyz[roof, 1].max() + margin - y0) / cell)) + 1
+    col = np.floor((xyz[:, 0] - x0) / np.float32(cell)).astype(int)
+    row = np.floor((xyz[:, 1] - y0) / np.float32(cell)).astype(int)
+    cells = {}
+    for i in np.flatnonzero(roof):
+        key = (col[i], row[i])
+        first, lo, hi = cells.get(key, (i, xyz[i, 2], xyz[i, 2]))
+        cells[key] = (min(first, i), min(lo, xyz[i, 2]), max(hi, xyz[i, 2]))
+    reach_in = math.ceil(inside_reach / cell)
+    reach_wall = math.ceil(wall_reach / cell)
+    out = segment.copy()
+    for i in np.flatnonzero(~roof & eligible):
+        c, r, z = col[i], row[i], xyz[i, 2]
+        if not (0 <= c < n_cols and 0 <= r < n_rows):
+            continue
+        hits = []
+        for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            for s in range(reach_in + 1):
+                key = (c + dx * s, r + dy * s)
+                if key in cells:
+                    hits.append((s, key[1] * n_cols + key[0], key))
+                    break
+        if len(hits) == 4:
+            s, _, key = min(hits)
+            first, lo, hi = cells[key]
+            if (lo - tol <= z <= hi + tol) or (s == 0 and z < lo - tol) or off_ok[i]:
+                out[i] = segment[first]
+        elif off_ok[i]:
+            best = None
+            for oy in range(-reach_wall, reach_wall + 1):
+                for ox in range(-reach_wall, reach_wall + 1):
+                    key = (c + ox, r + oy)
+                    if key in cells and cells[key][1] > z + tol:
+                        cand = (ox * ox + oy * oy, key[1] * n_cols + key[0], key)
+                        best = cand if best is None or cand < best else best
+            if best is not None:
+                out[i] = segment[cells[best[2]][0]]
+    return out
+
+
+def footprint_scene(seed=0):
+    """Two flat roofs (one with a hole for a roof unit) and loose points around, below, on and
+    above them; z on a 0.25 m lattice offset by 0.1 so no point sits on a tolerance border."""
+    rng = np.random.default_rng(seed)
+    roof_a = np.column_stack([rng.uniform(0, 10, 400), rng.uniform(0, 8, 400), np.full(400, 6.0)])
+    hole = (np.abs(roof_a[:, 0] - 5) < 1.5) & (np.abs(roof_a[:, 1] - 4) < 1.5)
+    roof_a = roof_a[~hole]
+    roof_b = np.column_stack([rng.uniform(15, 21, 200), rng.uniform(0, 6, 200), np.full(200, 3.0)])
+    loose = np.column_stack([rng.uniform(-3, 23, 300), rng.uniform(-3, 11, 300),
+                             rng.integers(0, 40, 300) * 0.25 + 0.1])
+    unit = np.column_stack([rng.uniform(4.2, 5.8, 20), rng.uniform(3.2, 4.8, 20), np.full(20, 7.6)])
+    xyz = np.concatenate([roof_a, roof_b, loose, unit]).astype(np.float32)
+    segment = np.concatenate([np.full(len(roof_a), 0), np.full(200, 1), np.full(320, -1)]).astype(np.int32)
+    off_ok = (rng.random(len(xyz)) < 0.6).astype(np.uint8)
+    eligible = (rng.random(len(xyz)) < 0.9).astype(np.uint8)
+    off_ok[-20:] = eligible[-20:] = 1
+    return xyz, segment, off_ok, eligible
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_attach_to_footprints_equals_reference(ti_arch, seed):
+    xyz, segment, off_ok, eligible = footprint_scene(seed)
+    got = seeds.attach_to_footprints(xyz, segment, off_ok, eligible, cell=1.0, inside_reach=3.0,
+                                     wall_reach=1.0, surface_tol=0.5)
+    want = reference_attach(xyz, segment, off_ok, eligible.astype(bool), 1.0, 3.0, 1.0, 0.5)
+    np.testing.assert_array_equal(got, want)
+    assert (got[segment >= 0] == segment[segment >= 0]).all()
+    assert (got >= 0).sum() > (segment >= 0).sum()       # something joined
+    # points in the roof-unit hole and above roof a (an HVAC unit) join roof a when allowed
+    unit = (np.abs(xyz[:, 0] - 5) < 1) & (np.abs(xyz[:, 1] - 4) < 1) & (xyz[:, 2] > 6.6) & (off_ok == 1) \
+        & (eligible == 1)
+    assert unit.any() and (got[unit] == 0).all()
+    # nothing far from both roofs joins
+    far = (xyz[:, 0] > 12.3) & (xyz[:, 0] < 12.7)
+    assert (got[far] == -1).all()
+
+
+def test_attach_to_footprints_on_taichi_ndarrays_and_empty(ti_arch):
+    import taichi as ti
+    xyz, segment, off_ok, eligible = footprint_scene(2)
+    want = seeds.attach_to_footprints(xyz, segment, off_ok, eligible)
+    nd = ti.ndarray(ti.f32, xyz.shape)
+    nd.from_numpy(xyz)
+    sg = ti.ndarray(ti.i32, segment.shape)
+    sg.from_numpy(segment)
+    got = seeds.attach_to_footprints(nd, sg, off_ok, eligible)
+    np.testing.assert_array_equal(got.to_numpy(), want)
+    none = np.full(len(xyz), -1, np.int32)
+    np.testing.assert_array_equal(seeds.attach_to_footprints(xyz, none), none)
+
+
+def test_segment_widths_match_covariance():
+    from roadx_ti.stages.roof_filter import segment_widths
+
+    rng = np.random.default_rng(3)
+    parts, segment = [], []
+    for sid, (w, l, ang) in enumerate([(2.2, 6.0, 0.3), (8.0, 12.0, 1.1), (3.0, 3.0, 0.0)]):
+        local = np.column_stack([rng.uniform(-l / 2, l / 2, 4000), rng.uniform(-w / 2, w / 2, 4000)])
+        rot = np.array([[math.cos(ang), -math.sin(ang)], [math.sin(ang), math.cos(ang)]])
+        parts.append(local @ rot.T + rng.uniform(-100, 100, 2))
+        segment.append(np.full(4000, sid))
+    xy, segment = np.concatenate(parts), np.concatenate(segment).astype(np.int32)
+    widths = segment_widths(np.concatenate([segment, [-1]]), np.concatenate([xy, [[0, 0]]]), 3)
+    for sid, w in enumerate([2.2, 8.0, 3.0]):
+        want = math.sqrt(12 * np.linalg.eigvalsh(np.cov(xy[segment == sid].T, bias=True))[0])
+        assert widths[sid] == pytest.approx(want, rel=1e-9)
+        assert widths[sid] == pytest.approx(w, rel=0.05)

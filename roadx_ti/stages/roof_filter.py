@@ -6,8 +6,20 @@ Needs roof_growing before it (point_data 'roof_segment') and, for the height tes
   earlier stage measured it on the whole cloud; else measured here on this stage's cloud (the
   non-ground points): their count / the area of the density_cell x density_cell cells they occupy
   in plan view. Multiple returns in trees make this a slight overestimate (a stricter area test).
+  With local_density (default) and roof_seeds' point_data 'neighbour_distance' (farthest of the k
+  neighbours, d_k), each segment uses its own density instead: the median over its points of
+  k / (pi d_k^2) (points per m2 of the roof plane; the median ignores the sparse edge points). ALS
+  density varies 2x between single and overlapping flight strips, so one global value over- or
+  under-states a small roof's area by up to 2x.
 - a segment with fewer than density * min_roof_area points is dropped;
-- a segment whose median height above ground is below min_roof_height is dropped.
+- a segment whose median height above ground is below min_roof_height is dropped;
+- a segment narrower than min_roof_width is dropped: width = sqrt(12 * smallest eigenvalue of the
+  plan-view covariance of its points) (exact for a uniformly sampled rectangle). Vans and trucks
+  (2-2.5 m wide) are as high and as large as small roofs; no building roof is that narrow.
+- footprint completion (attach_footprint, kernels/seeds.attach_to_footprints): walls below a
+  kept roof's edge, chimneys and roof units standing on it and roof points under overhanging
+  foliage join it; off the roof surface only points that are not vegetation-coloured join
+  (point_data 'vegetation' from roof_growing; without colour every point may).
 Labels: 6 (building) for points of kept segments, 1 (other) for the rest; segment_id compact over
 the kept segments, -1 elsewhere.
 """
@@ -27,6 +39,27 @@ class RoofFilterOptions(StageOptions):
                                    "roof segment (m)")
     density: float | None = Field(None, gt=0, description="point density (points/m2); null = measured")
     density_cell: float = Field(1.0, gt=0, description="cell size for measuring density (m)")
+    local_density: bool = Field(True, description="per segment density from its points' neighbour "
+                                "distances (flight-strip overlap doubles ALS density locally)")
+    min_roof_width: float = Field(3.0, ge=0, description="smallest plan-view width of a roof "
+                                  "segment (m); drops vehicles, which pass the height and area tests")
+    narrow_max_height: float = Field(3.5, ge=0, description="the width test applies to segments "
+                                     "lower than this (m, median height): vehicles are lower; "
+                                     "higher narrow segments are walls or roof parts")
+    attach_footprint: bool = Field(True, description="add walls, chimneys, roof units and roof "
+                                   "points under foliage inside or below a kept roof's footprint")
+    attach_min_height: float = Field(1.0, description="only points at least this high above "
+                                     "ground (m) join a footprint: low returns beside a wall are "
+                                     "mostly ground and low plants the cloth left as non-ground")
+    footprint_cell: float = Field(1.0, gt=0, description="grid cell of the roof footprints (m); "
+                                  "about 2-3 point spacings so a roof has no empty cells")
+    inside_reach: float = Field(3.0, ge=0, description="a point is inside a footprint when roof "
+                                "cells lie this close (m) in all four axis directions; covers "
+                                "holes left by roof units up to about 2 x inside_reach wide")
+    wall_reach: float = Field(1.0, ge=0, description="a point below a roof edge joins when a roof "
+                              "cell this close (m) is above it (walls, eaves overhang ~0.5 m)")
+    surface_tol: float = Field(0.5, ge=0, description="a point within this height (m) of its roof "
+                               "cell's z range lies on the roof surface and joins whatever its colour")
 
 
 def occupied_density(xy: np.ndarray, cell: float) -> float:
@@ -51,6 +84,22 @@ def segment_medians(segment: np.ndarray, values: np.ndarray, count: int) -> np.n
     return (lo + hi) / 2
 
 
+def segment_widths(segment: np.ndarray, xy: np.ndarray, count: int) -> np.ndarray:
+    """Plan-view width per segment id 0..count-1: sqrt(12 * smallest eigenvalue of the xy
+    covariance) in m (a uniformly sampled w x l rectangle gives w). float64."""
+    inside = segment >= 0
+    seg = segment[inside]
+    pts = xy[inside].astype(np.float64)
+    sizes = np.maximum(np.bincount(seg, minlength=count), 1)
+    mean = np.stack([np.bincount(seg, pts[:, a], minlength=count) for a in (0, 1)], 1) / sizes[:, None]
+    d = pts - mean[seg]
+    sxx = np.bincount(seg, d[:, 0] * d[:, 0], minlength=count) / sizes
+    syy = np.bincount(seg, d[:, 1] * d[:, 1], minlength=count) / sizes
+    sxy = np.bincount(seg, d[:, 0] * d[:, 1], minlength=count) / sizes
+    smallest = (sxx + syy) / 2 - np.sqrt(((sxx - syy) / 2) ** 2 + sxy ** 2)
+    return np.sqrt(12 * np.maximum(smallest, 0))
+
+
 class RoofFilter(Stage):
     name = "roof_filter"
     Options = RoofFilterOptions
@@ -71,7 +120,17 @@ class RoofFilter(Stage):
             density, density_source = occupied_density(cloud.xyz[:, :2], o.density_cell), "non_ground"
         min_points = density * o.min_roof_area
         sizes = np.bincount(segment[segment >= 0], minlength=count)
-        keep_area = sizes >= min_points
+        distance = ctx.point_data.get("neighbour_distance")
+        knn = ctx.facts.get("knn")
+        if o.local_density and o.density is None and distance is not None and knn is not None and count:
+            k = int(np.shape(knn)[1])
+            local = k / (np.pi * np.maximum(np.asarray(distance, np.float64), 1e-3) ** 2)
+            segment_density = segment_medians(segment, local, count)
+            keep_area = sizes >= segment_density * o.min_roof_area
+            density_source += "+local"
+        else:
+            keep_area = sizes >= min_points
+        keep_width = np.ones(count, bool)
         height = ctx.point_data.get("height_above_ground")
         if height is None:
             ctx.log.warning("roof_filter: no height above ground (run cloth_ground first); "
@@ -80,14 +139,33 @@ class RoofFilter(Stage):
         else:
             keep_height = segment_medians(segment, np.asarray(height), count) >= o.min_roof_height \
                 if count else np.ones(0, bool)
-        kept = keep_area & keep_height
+        if count and o.min_roof_width > 0 and height is not None:
+            narrow = segment_widths(segment, cloud.xyz[:, :2], count) < o.min_roof_width
+            keep_width = ~(narrow & (segment_medians(segment, np.asarray(height), count) < o.narrow_max_height))
+        kept = keep_area & keep_height & keep_width
         roof = np.zeros(len(segment), bool)
         roof[segment >= 0] = kept[segment[segment >= 0]]
+        attached = 0
+        if o.attach_footprint and roof.any():
+            from roadx_ti.kernels.seeds import attach_to_footprints
+
+            vegetation = ctx.point_data.get("vegetation")
+            off_surface_ok = None if vegetation is None else (np.asarray(vegetation) == 0).astype(np.uint8)
+            eligible = None if height is None else \
+                (np.asarray(height) >= o.attach_min_height).astype(np.uint8)
+            grown = np.asarray(attach_to_footprints(
+                cloud.xyz, np.where(roof, segment, -1).astype(np.int32), off_surface_ok, eligible,
+                cell=o.footprint_cell, inside_reach=o.inside_reach, wall_reach=o.wall_reach,
+                surface_tol=o.surface_tol))
+            attached = int(np.count_nonzero(grown >= 0) - np.count_nonzero(roof))
+            segment, roof = grown, grown >= 0
         segment_id, kept_count = relabel_compact(np.where(roof, segment, -1).astype(np.int32))
         labels = np.where(roof, CLASS_BUILDING, CLASS_OTHER).astype(np.uint8)
         info = {"density": round(density, 3), "density_source": density_source,
                 "min_points": round(min_points, 1), "segments_in": count,
                 "dropped_by_area": int((~keep_area).sum()),
                 "dropped_by_height": int((keep_area & ~keep_height).sum()),
+                "dropped_by_width": int((keep_area & keep_height & ~keep_width).sum()),
+                "attached_points": attached,
                 "segments_kept": int(kept_count), "roof_points": int(roof.sum())}
         return StageResult(labels=labels, segment_id=segment_id, info=info)

@@ -7,7 +7,8 @@ normals are within angle_max_deg, and, when either is vegetation-coloured (COM >
 whose 8-bit RGB distance is below color_max; growth passes only through seeds and points with
 curvature below expand_curvature_max; connected pieces holding a seed are roof segments, other
 points touching them by a growth edge join as leaves. Without colour the colour rule is off (a
-warning says so). Writes point_data 'roof_segment' (int32, compact ids, -1 = none).
+warning says so). Writes point_data 'roof_segment' (int32, compact ids, -1 = none) and, with the
+colour rule on, 'vegetation' (uint8, COM > com_threshold) for roof_filter's footprint completion.
 """
 from __future__ import annotations
 
@@ -68,4 +69,7 @@ class RoofGrowing(Stage):
                 "color_rule": bool(colour)}
         if vegetation_points is not None:
             info["vegetation_coloured"] = vegetation_points
-        return StageResult(point_data={"roof_segment": segment}, segment_id=segment, info=info)
+        point_data = {"roof_segment": segment}
+        if colour:
+            point_data["vegetation"] = np.asarray(colour["vegetation"], np.uint8)
+        return StageResult(point_data=point_data, segment_id=segment, info=info)

@@ -60,5 +60,6 @@ class RoofSeeds(Stage):
                                for name in ("planar", "compact", "gradient")}}
         return StageResult(point_data={"roof_seed": seed,
                                        "normal": np.asarray(features["normal"], np.float32),
-                                       "curvature": np.asarray(features["curvature"], np.float32)},
+                                       "curvature": np.asarray(features["curvature"], np.float32),
+                                       "neighbour_distance": np.asarray(features["max_distance"], np.float32)},
                            info=info)
