@@ -10,12 +10,11 @@ TARGETS = {"numpy": 1.0, "open3d": 1.0}
 
 
 def roadx_ti(scene, every):
-    from roadx_ti.stages.downsample import uniform_indices
+    from roadx_ti.kernels.downsample import uniform_sample
 
     xyz = scene.xyz
-    n = len(xyz)
-    target = -(-n // every)
-    return lambda: xyz[uniform_indices(n, target)]
+    target = -(-len(xyz) // every)
+    return lambda: uniform_sample(xyz, target)
 
 
 def numpy_stride(scene, every):

@@ -222,12 +222,18 @@ def _check_xyz(xyz):
 
 
 _SCRATCH = {}
+_SCRATCH_OWNER = [None]    # the Taichi program the cached buffers belong to
 
 
 def scratch(name: str, dtype, shape):
     """A work ndarray reused between calls (the latest shape per name): no allocation and no
     page faults on repeated calls of the same size. Never hand one to a caller: the next call
-    with the same name overwrites it. Contents are undefined (``fill`` what must start at 0)."""
+    with the same name overwrites it. Contents are undefined (``fill`` what must start at 0).
+    A new Taichi runtime (ti.reset / ti.init) drops the cache."""
+    prog = ti.lang.impl.get_runtime().prog
+    if _SCRATCH_OWNER[0] is not prog:
+        _SCRATCH.clear()
+        _SCRATCH_OWNER[0] = prog
     shape = tuple(int(v) for v in shape)
     arr = _SCRATCH.get(name)
     if arr is None or tuple(arr.shape) != shape or arr.dtype != dtype:

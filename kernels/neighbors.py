@@ -38,7 +38,6 @@ _INF_KEY = 0x7F800000          # float bits of +inf: larger than any finite dist
 _FIRST_SHIFT = 19              # first bins: 1/16 octave (2^23 float bits per octave), 2 octaves
 _BRUTE_SHIFT = 26              # brute force: 32 bins cover every finite float
 _BLOCK_BITS = 2                # blocks of 4x4x4 cells: 64 consecutive buckets (grid.cell_hash)
-_BLOCK = 1 << _BLOCK_BITS
 _CPU_GRAIN = 64                # iterations a CPU thread takes at a time (dynamic load balance)
 
 
@@ -296,21 +295,24 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                 scell: ti.types.ndarray(dtype=ti.i32, ndim=2), bstart: ti.types.ndarray(dtype=ti.i32, ndim=1),
                 queries: ti.types.ndarray(dtype=ti.i32, ndim=1),
                 mask: ti.i32, ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32, inv_cell: ti.f32,
-                k: ti.i32, brute_blocks: ti.i32, self_slots: ti.i32,
+                k: ti.i32, brute_blocks: ti.i32, self_slots: ti.i32, block_bits: ti.i32,
                 out_idx: ti.types.ndarray(dtype=ti.i32, ndim=2), out_dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
                 out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.template()):
-    """k <= SMALL_K, for the points (sorted positions in ``queries``) that the cell kernel did
-    not settle: sparse regions and outliers. Searches blocks of 4x4x4 cells (their points are one
-    contiguous range of buckets, ``grid.cell_hash``), shell by shell around the query's block,
-    skipping blocks farther than the current k-th; past ``brute_blocks`` it scans all points."""
+    """k <= SMALL_K, one query per thread for the points at sorted positions ``queries``.
+    Searches blocks of cells shell by shell around the query's block, skipping blocks farther
+    than the current k-th; past ``brute_blocks`` it scans all points. ``block_bits`` 2: blocks
+    of 4x4x4 cells (one contiguous range of 64 buckets, ``grid.cell_hash``), for the sparse
+    regions and outliers the cell kernel leaves; 0: single cells (every query on GPUs)."""
     n = sxyz.shape[0]
-    block_size = cell_size * _BLOCK
+    block = 1 << block_bits
+    span = 1 << (3 * block_bits)
+    block_size = cell_size * ti.cast(block, ti.f32)
     for qs in range(queries.shape[0]):
         s = queries[qs]
         qi = order[s]
         q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
-        cb = ti.math.ivec3(scell[s, 0], scell[s, 1], scell[s, 2]) >> _BLOCK_BITS
-        u = (q - ti.math.vec3(ox, oy, oz)) * (inv_cell / _BLOCK)
+        cb = ti.math.ivec3(scell[s, 0], scell[s, 1], scell[s, 2]) >> block_bits
+        u = (q - ti.math.vec3(ox, oy, oz)) * (inv_cell / ti.cast(block, ti.f32))
         heap_key = ti.Vector([0] * SMALL_K, ti.i32)
         heap_idx = ti.Vector([0] * SMALL_K, ti.i32)
         size = 0
@@ -321,7 +323,7 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                 # far from everything: every point outside the rings already scanned
                 for j in range(n):
                     if j != s:
-                        bj = ti.math.ivec3(scell[j, 0], scell[j, 1], scell[j, 2]) >> _BLOCK_BITS
+                        bj = ti.math.ivec3(scell[j, 0], scell[j, 1], scell[j, 2]) >> block_bits
                         if ti.abs(bj - cb).max() >= ring:
                             size = _offer_run(j, j + 1, s, q, heap_key, heap_idx, size, k, order, sxyz, ti.math.inf)
                 done = 1
@@ -342,10 +344,10 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                                     visit = 0
                             if visit:
                                 target = cb + d
-                                base = cell_hash(target << _BLOCK_BITS, mask)   # its 64 buckets
-                                for j in range(bstart[base], bstart[base + _BLOCK * _BLOCK * _BLOCK]):
-                                    if scell[j, 0] >> _BLOCK_BITS == target[0] and scell[j, 1] >> _BLOCK_BITS == target[1] \
-                                            and scell[j, 2] >> _BLOCK_BITS == target[2]:
+                                base = cell_hash(target << block_bits, mask)   # its span of buckets
+                                for j in range(bstart[base], bstart[base + span]):
+                                    if scell[j, 0] >> block_bits == target[0] and scell[j, 1] >> block_bits == target[1] \
+                                            and scell[j, 2] >> block_bits == target[2]:
                                         size = _offer_run(j, j + 1, s, q, heap_key, heap_idx, size, k, order, sxyz, ti.math.inf)
                             dx += step
                 if size == k and ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32)) < _safe_radius(u, cb, ring, block_size):
@@ -408,7 +410,7 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
             else:
                 shift = _FIRST_SHIFT
                 lo = ti.max(ti.bit_cast(sr, ti.i32) - (_BINS << _FIRST_SHIFT), 0)
-            for bz in ti.static(range(_BINS)):
+            for bz in range(_BINS):
                 hist[bz] = 0
                 hsum[bz] = 0.0
             bound = sr
@@ -466,7 +468,7 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
         narrowing = 1
         while narrowing:
             if fresh == 0:
-                for bz in ti.static(range(_BINS)):
+                for bz in range(_BINS):
                     hist[bz] = 0
                     hsum[bz] = 0.0
                 bound = sr
@@ -661,13 +663,32 @@ def _run_scan(grid: Grid, k: int, out_idx, out_dist, out_mean, emit_rows: bool, 
         _knn_select(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, *geometry,
                     _brute_cells(grid.n), self_slots, out_idx, out_dist, out_mean, emit_rows)
         return
+    if not _is_cpu():
+        # GPUs: one query per thread (the cell kernel runs one cell's queries serially in one
+        # thread, which suits CPUs; under lavapipe such long invocations lost rows)
+        queries = scratch("knn.all_queries", ti.i32, (grid.n,))
+        _iota(queries)
+        _knn_blocks(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, queries,
+                    *geometry, _brute_cells(grid.n), self_slots, 0, out_idx, out_dist, out_mean, emit_rows)
+        return
     pending = scratch("knn.pending", ti.i32, (grid.n,))
     _knn_cells(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, grid.cell_start,
                *geometry, self_slots, pending, out_idx, out_dist, out_mean, emit_rows)
     queries, n_pending = compact_mask(pending)
     if n_pending:
         _knn_blocks(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, queries,
-                    *geometry, _brute_cells(grid.n), self_slots, out_idx, out_dist, out_mean, emit_rows)
+                    *geometry, _brute_cells(grid.n), self_slots, _BLOCK_BITS, out_idx, out_dist, out_mean,
+                    emit_rows)
+
+
+@ti.kernel
+def _iota(out: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in range(out.shape[0]):
+        out[i] = i
+
+
+def _is_cpu() -> bool:
+    return ti.lang.impl.current_cfg().arch in (ti.x64, ti.arm64)
 
 
 def default_points_per_cell(k: int) -> float:

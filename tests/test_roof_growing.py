@@ -346,3 +346,131 @@ def test_segment_widths_match_covariance():
         want = math.sqrt(12 * np.linalg.eigvalsh(np.cov(xy[segment == sid].T, bias=True))[0])
         assert widths[sid] == pytest.approx(want, rel=1e-9)
         assert widths[sid] == pytest.approx(w, rel=0.05)
+
+
+def reference_annexes(segment, xy, kept, candidate, cell, reach):
+    """Brute force: a candidate segment with a point whose cell is within reach cells (Chebyshev)
+    of a cell holding a kept segment's point."""
+    cells = np.floor((xy - xy[segment >= 0].min(axis=0)) / cell).astype(np.int64)
+    reach_cells = math.ceil(round(reach / cell, 9))
+    kept_cells = cells[(segment >= 0) & kept[np.maximum(segment, 0)]]
+    out = np.zeros(len(kept), bool)
+    for sid in np.flatnonzero(candidate):
+        mine = cells[segment == sid]
+        if len(mine) and len(kept_cells):
+            gap = np.abs(mine[:, None, :] - kept_cells[None, :, :]).max(axis=2)
+            out[sid] = gap.min() <= reach_cells
+    return out
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_annex_segments_equal_reference(seed):
+    from roadx_ti.stages.roof_filter import annex_segments
+
+    rng = np.random.default_rng(seed)
+    count = 12
+    centres = rng.uniform(0, 40, (count, 2))
+    sizes = rng.integers(5, 40, count)
+    segment = np.concatenate([np.full(m, sid) for sid, m in enumerate(sizes)] + [np.full(30, -1)]).astype(np.int32)
+    xy = np.concatenate([c + rng.uniform(-2, 2, (m, 2)) for c, m in zip(centres, sizes)]
+                        + [rng.uniform(0, 40, (30, 2))])
+    kept = rng.random(count) < 0.4
+    kept[0] = True
+    candidate = ~kept & (rng.random(count) < 0.8)
+    for cell, reach in [(1.0, 1.0), (0.5, 1.2), (1.0, 0.0)]:
+        got = annex_segments(segment, xy, kept, candidate, cell, reach)
+        np.testing.assert_array_equal(got, reference_annexes(segment, xy, kept, candidate, cell, reach))
+        assert not (got & ~candidate).any()
+
+
+def annex_scene(seed=11):
+    """A 10 x 8 m flat roof at 6 m; against its east wall a 2.5 x 3 m annex roof at 3 m (7.5 m2,
+    below the 10 m2 area); a detached shed of the same size 8 m away; a flat foliage-coloured
+    (mottled green) patch of the same size against the north wall. Non-ground points, ground z = 0."""
+    rng = np.random.default_rng(seed)
+    density = 12.0
+
+    def patch(x0, x1, y0, y1, z, rgb_of):
+        m = int(density * (x1 - x0) * (y1 - y0))
+        xyz = np.column_stack([rng.uniform(x0, x1, m), rng.uniform(y0, y1, m), np.full(m, z)])
+        return xyz + rng.normal(0, 0.02, (m, 3)), rgb_of(m)
+
+    def plain(colour):
+        return lambda m: np.tile(colour, (m, 1)) + rng.integers(-5, 6, (m, 3))
+
+    def foliage(m):
+        return np.column_stack([rng.integers(20, 90, m), rng.integers(80, 200, m), rng.integers(10, 80, m)])
+
+    parts = [patch(0, 10, 0, 8, 6.0, plain([150, 80, 70])),
+             patch(10.1, 12.6, 2, 5, 3.0, plain([120, 120, 125])),
+             patch(20.6, 23.1, 2, 5, 3.0, plain([120, 120, 125])),
+             patch(3, 6, 8.1, 10.6, 3.0, foliage)]
+    xyz = np.concatenate([p[0] for p in parts])
+    rgb = np.clip(np.concatenate([p[1] for p in parts]), 0, 255).astype(np.uint16)
+    part = np.repeat(np.arange(len(parts)), [len(p[0]) for p in parts])
+    return xyz, rgb, part
+
+
+@pytest.mark.parametrize("annex_reach", [1.0, 0.0])
+def test_annex_against_a_roof_is_kept(ti_arch, annex_reach):
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.roof_filter import RoofFilter
+    from roadx_ti.stages.roof_growing import RoofGrowing
+    from roadx_ti.stages.seeds import RoofSeeds
+
+    xyz, rgb, part = annex_scene()
+    cloud = Cloud.from_world(xyz, origin=np.zeros(3), rgb=rgb)
+    ctx = StageContext(point_data={"height_above_ground": cloud.xyz[:, 2].copy()})
+    stages = (RoofSeeds(), RoofGrowing(),
+              RoofFilter({"annex_reach": annex_reach, "attach_footprint": False}))
+    for stage in stages:
+        result = stage.run(cloud, ctx)
+        ctx.point_data.update(result.point_data)
+    building = result.labels == 6
+    assert building[part == 0].mean() > 0.95
+    assert building[part == 1].mean() > (0.9 if annex_reach else -1) and \
+        building[part == 1].mean() < (1.01 if annex_reach else 0.05)
+    assert building[part == 2].mean() < 0.05          # a detached small shed stays out (P4 area)
+    assert building[part == 3].mean() < 0.05          # a foliage-coloured patch is no annex
+    assert result.info["annexes_kept"] == (1 if annex_reach else 0)
+
+
+@pytest.mark.parametrize("exempt", [0.02, None])
+def test_planar_roof_under_foliage_colour_grows(ti_arch, exempt):
+    """A gable plane whose middle 3 x 3 m carries mottled foliage colour (orthophoto colour of an
+    overhanging tree) joins its roof segment only with the curvature exemption; a rough tree
+    crown stays out either way."""
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.roof_growing import RoofGrowing
+    from roadx_ti.stages.seeds import RoofSeeds
+
+    rng = np.random.default_rng(5)
+    m = 12 * 80
+    x, y = rng.uniform(0, 10, m), rng.uniform(0, 8, m)
+    roof = np.column_stack([x, y, 5 + 0.6 * y]) + rng.normal(0, 0.02, (m, 3))
+    under = (np.abs(x - 5) < 1.5) & (np.abs(y - 4) < 1.5)
+    roof_rgb = np.tile([150, 80, 70], (m, 1)) + rng.integers(-5, 6, (m, 3))
+    green = np.column_stack([rng.integers(20, 90, m), rng.integers(80, 200, m), rng.integers(10, 80, m)])
+    roof_rgb[under] = green[under]
+    tree = rng.normal([5, 16, 7], [1.5, 1.5, 1.2], (700, 3))
+    tree_rgb = np.column_stack([rng.integers(20, 90, 700), rng.integers(80, 200, 700), rng.integers(10, 80, 700)])
+    xyz = np.concatenate([roof, tree])
+    rgb = np.clip(np.concatenate([roof_rgb, tree_rgb]), 0, 255).astype(np.uint16)
+    cloud = Cloud.from_world(xyz, origin=np.zeros(3), rgb=rgb)
+    ctx = StageContext(point_data={})
+    for stage in (RoofSeeds(), RoofGrowing({"color_exempt_curvature": exempt})):
+        ctx.point_data.update(stage.run(cloud, ctx).point_data)
+    segment = np.asarray(ctx.point_data["roof_segment"])
+    main = np.bincount(segment[:m][~under & (segment[:m] >= 0)]).argmax()
+    joined = (segment[:m][under] == main).mean()
+    if exempt is None:
+        assert joined < 0.5
+    else:
+        assert joined > 0.9
+    # the crown: no big segment, and nothing joins the roof
+    crown = segment[m:]
+    assert (crown == main).mean() < 0.02
+    if (crown >= 0).any():
+        assert np.bincount(crown[crown >= 0]).max() < 30

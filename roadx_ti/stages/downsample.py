@@ -12,12 +12,6 @@ from roadx_ti.cloud import Cloud
 from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
 
 
-def uniform_indices(n: int, target: int) -> np.ndarray:
-    """Point j of the output is input point floor(j * n / target) (METHODS.md R1)."""
-    target = min(max(int(target), 0), n)
-    return (np.arange(target, dtype=np.int64) * n // max(target, 1)).astype(np.int64)
-
-
 class UniformOptions(StageOptions):
     target_points: int | None = Field(None, ge=1, description="keep this many points")
     ratio: float | None = Field(None, gt=0, le=1, description="keep this fraction of the points")
@@ -37,8 +31,10 @@ class UniformDownsample(Stage):
         n = cloud.n
         # a ratio > 0 keeps at least one point: rounding must not leave a tiny cloud unprocessed
         target = self.options.target_points or max(int(round(n * self.options.ratio)), min(n, 1))
+        from roadx_ti.kernels.downsample import uniform_sample
+
         keep = np.zeros(n, bool)
-        keep[uniform_indices(n, min(target, n))] = True
+        keep[uniform_sample(cloud.xyz, min(target, n))[0]] = True
         return StageResult(keep=keep, mode="subsample", info={"target_points": int(keep.sum())})
 
 

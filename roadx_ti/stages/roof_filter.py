@@ -16,6 +16,12 @@ Needs roof_growing before it (point_data 'roof_segment') and, for the height tes
 - a segment narrower than min_roof_width is dropped: width = sqrt(12 * smallest eigenvalue of the
   plan-view covariance of its points) (exact for a uniformly sampled rectangle). Vans and trucks
   (2-2.5 m wide) are as high and as large as small roofs; no building roof is that narrow.
+- annexes (annex_reach > 0): a segment dropped only by the area or width test (it passes the
+  height test) is kept when it holds at least density * annex_min_area points, at most
+  annex_max_vegetation of them vegetation-coloured, and one of its points lies in a plan-view
+  cell (footprint_cell) within annex_reach of a cell holding a kept roof point: garages, porches
+  and annexes built against a house are building even when small or narrow. Decided from the
+  kept roofs only (no chains), so the result is order independent.
 - footprint completion (attach_footprint, kernels/seeds.attach_to_footprints): walls below a
   kept roof's edge, chimneys and roof units standing on it and roof points under overhanging
   foliage join it; off the roof surface only points that are not vegetation-coloured join
@@ -46,6 +52,15 @@ class RoofFilterOptions(StageOptions):
     narrow_max_height: float = Field(3.5, ge=0, description="the width test applies to segments "
                                      "lower than this (m, median height): vehicles are lower; "
                                      "higher narrow segments are walls or roof parts")
+    annex_reach: float = Field(1.0, ge=0, description="a segment dropped only by the area or width "
+                               "test is kept when its plan-view cells lie within this distance (m) "
+                               "of a kept roof's cells: annexes and garages built against a house "
+                               "are building, often under 10 m2 or 3 m wide; 0 = off")
+    annex_min_area: float = Field(1.0, ge=0, description="smallest annex segment (m2, same density "
+                                  "as the area test): skips plane fragments of clutter by a wall")
+    annex_max_vegetation: float = Field(0.3, ge=0, le=1, description="largest fraction of "
+                                        "vegetation-coloured points of an annex (unitless): small "
+                                        "planar patches in trees beside a roof are not annexes")
     attach_footprint: bool = Field(True, description="add walls, chimneys, roof units and roof "
                                    "points under foliage inside or below a kept roof's footprint")
     attach_min_height: float = Field(1.0, description="only points at least this high above "
@@ -100,6 +115,29 @@ def segment_widths(segment: np.ndarray, xy: np.ndarray, count: int) -> np.ndarra
     return np.sqrt(12 * np.maximum(smallest, 0))
 
 
+def annex_segments(segment: np.ndarray, xy: np.ndarray, kept: np.ndarray, candidate: np.ndarray,
+                   cell: float, reach: float) -> np.ndarray:
+    """Per segment id: a candidate segment with a point whose plan-view cell (side ``cell`` m) lies
+    within ``reach`` m (square window of cells) of a cell holding a kept segment's point. Reads
+    only the kept segments, so the result is order independent (no chains of annexes). bool."""
+    count = len(kept)
+    inside = segment >= 0
+    seg = segment[inside]
+    ij = np.floor((xy[inside] - xy[inside].min(axis=0)) / cell).astype(np.int64)
+    reach_cells = int(np.ceil(round(reach / cell, 9)))
+    ij += reach_cells
+    n_rows = int(ij[:, 1].max()) + reach_cells + 1
+    keys = ij[:, 0] * n_rows + ij[:, 1]
+    roof_keys = np.unique(keys[kept[seg]])
+    near = np.zeros(len(seg), bool)
+    for dx in range(-reach_cells, reach_cells + 1):
+        for dy in range(-reach_cells, reach_cells + 1):
+            shifted = keys + dx * n_rows + dy
+            near |= np.isin(shifted, roof_keys)
+    touching = np.bincount(seg[near & candidate[seg]], minlength=count) > 0
+    return touching & candidate
+
+
 class RoofFilter(Stage):
     name = "roof_filter"
     Options = RoofFilterOptions
@@ -125,11 +163,11 @@ class RoofFilter(Stage):
         if o.local_density and o.density is None and distance is not None and knn is not None and count:
             k = int(np.shape(knn)[1])
             local = k / (np.pi * np.maximum(np.asarray(distance, np.float64), 1e-3) ** 2)
-            segment_density = segment_medians(segment, local, count)
-            keep_area = sizes >= segment_density * o.min_roof_area
+            area_density = segment_medians(segment, local, count)
             density_source += "+local"
         else:
-            keep_area = sizes >= min_points
+            area_density = np.full(count, density)
+        keep_area = sizes >= area_density * o.min_roof_area
         keep_width = np.ones(count, bool)
         height = ctx.point_data.get("height_above_ground")
         if height is None:
@@ -143,6 +181,20 @@ class RoofFilter(Stage):
             narrow = segment_widths(segment, cloud.xyz[:, :2], count) < o.min_roof_width
             keep_width = ~(narrow & (segment_medians(segment, np.asarray(height), count) < o.narrow_max_height))
         kept = keep_area & keep_height & keep_width
+        annexes = 0
+        if o.annex_reach > 0 and count and kept.any():
+            # dropped by the area or width test only, large enough, not mostly foliage-coloured
+            candidate = keep_height & ~kept & (sizes >= area_density * o.annex_min_area)
+            vegetation = ctx.point_data.get("vegetation")
+            if vegetation is not None:
+                inside = segment >= 0
+                coloured = np.bincount(segment[inside], minlength=count,
+                                       weights=(np.asarray(vegetation)[inside] != 0).astype(np.float64))
+                candidate &= coloured <= o.annex_max_vegetation * sizes
+            annex = annex_segments(segment, cloud.xyz[:, :2], kept, candidate,
+                                   o.footprint_cell, o.annex_reach)
+            annexes = int(annex.sum())
+            kept = kept | annex
         roof = np.zeros(len(segment), bool)
         roof[segment >= 0] = kept[segment[segment >= 0]]
         attached = 0
@@ -166,6 +218,6 @@ class RoofFilter(Stage):
                 "dropped_by_area": int((~keep_area).sum()),
                 "dropped_by_height": int((keep_area & ~keep_height).sum()),
                 "dropped_by_width": int((keep_area & keep_height & ~keep_width).sum()),
-                "attached_points": attached,
+                "annexes_kept": annexes, "attached_points": attached,
                 "segments_kept": int(kept_count), "roof_points": int(roof.sum())}
         return StageResult(labels=labels, segment_id=segment_id, info=info)

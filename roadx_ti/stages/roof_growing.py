@@ -4,8 +4,9 @@ seeds.roof_growth_edges, seeds.grow_roof_segments, labels.relabel_compact).
 Needs roof_seeds before it (point_data 'normal', 'curvature', 'roof_seed'; ctx.facts['knn']).
 Semantics (order independent; see kernels/seeds.py): a growth edge joins kNN neighbours whose
 normals are within angle_max_deg, and, when either is vegetation-coloured (COM > com_threshold),
-whose 8-bit RGB distance is below color_max; growth passes only through seeds and points with
-curvature below expand_curvature_max; connected pieces holding a seed are roof segments, other
+whose 8-bit RGB distance is below color_max (a point with curvature below color_exempt_curvature
+counts as not vegetation-coloured for this rule: planar roof under overhanging foliage); growth
+passes only through seeds and points with curvature below expand_curvature_max; connected pieces holding a seed are roof segments, other
 points touching them by a growth edge join as leaves. Without colour the colour rule is off (a
 warning says so). Writes point_data 'roof_segment' (int32, compact ids, -1 = none) and, with the
 colour rule on, 'vegetation' (uint8, COM > com_threshold) for roof_filter's footprint completion.
@@ -29,6 +30,10 @@ class RoofGrowingOptions(StageOptions):
     use_color: bool = Field(True, description="apply the vegetation colour rule when the cloud has RGB")
     com_threshold: float = Field(DEFAULT_COM_THRESHOLD, description="points with COM vegetation index above this are "
                                  "vegetation-coloured (COM is unitless; grey = 6.2815)")
+    color_exempt_curvature: float | None = Field(
+        0.02, gt=0, description="points with curvature below this (unitless) are exempt from the "
+        "colour rule: roof under overhanging foliage is planar but carries the tree's orthophoto "
+        "colour, foliage itself is rough; null = no exemption")
     color_max: float = Field(30.0, gt=0, description="a vegetation-coloured point joins only a "
                              "neighbour closer than this in RGB (8-bit units)")
 
@@ -60,7 +65,13 @@ class RoofGrowing(Stage):
             colour = dict(rgb=rgb, vegetation=vegetation, color_max=o.color_max)
         elif o.use_color:
             ctx.log.warning("roof_growing: the input has no colour; the vegetation colour rule is off")
-        edge_ok = roof_growth_edges(knn, ctx.point_data["normal"], angle_max_deg=o.angle_max_deg, **colour)
+        edge_colour = dict(colour)
+        if colour and o.color_exempt_curvature is not None:
+            # a planar point is roof surface under foliage (orthophoto colour), not foliage itself
+            edge_colour["vegetation"] = ((np.asarray(colour["vegetation"]) != 0) &
+                                         (np.asarray(ctx.point_data["curvature"]) >= o.color_exempt_curvature)
+                                         ).astype(np.uint8)
+        edge_ok = roof_growth_edges(knn, ctx.point_data["normal"], angle_max_deg=o.angle_max_deg, **edge_colour)
         segment = grow_roof_segments(knn, edge_ok, ctx.point_data["roof_seed"],
                                      curvature=ctx.point_data["curvature"],
                                      expand_curvature_max=o.expand_curvature_max)
