@@ -7,11 +7,18 @@ otherwise the cube grows by one ring. Far from everything (outliers), once the c
 more cells than a brute scan costs, the query scans all points instead.
 
 Neighbours are ordered by (float32 distance, point index): ties break by index, so results are
-deterministic whatever the scan order.
+deterministic whatever the scan order. (For k <= SMALL_K the selection itself runs on
+(squared distance, index); rows are then re-ordered by (distance, index).)
 
-Two kernels, sharing the cell-range and membership helpers:
-* k <= SMALL_K (``_knn_heap``): a per-thread max-heap of SMALL_K slots in registers, one pass;
-  rings are added shell by shell and cells whose box lies beyond the current k-th are skipped.
+Kernels for k <= SMALL_K, each keeping an ascending list of the k best in registers:
+* ``_knn_cells`` (CPU): one occupied cell per iteration. The runs of its 27 neighbouring cells
+  are looked up once per cell, then its points are queried one after the other, each starting
+  from a bound on its k-th distance taken from the previous query (rejects most candidates
+  before any insertion). A query not settled by the 3x3x3 cube adds the second ring's cells
+  within reach; the few still unsettled (outliers, sparse regions) go to ``_knn_blocks``.
+* ``_knn_blocks``: one query per thread, shell by shell over blocks of 4x4x4 cells (64
+  consecutive buckets: cheap to skip empty space) or, on GPUs, for every query over single
+  cells; blocks beyond the current k-th are skipped, a brute scan ends hopeless searches.
 * larger k (``_knn_select``; SOR uses k = 500): selection by counting, with no per-thread array
   of k slots. The pass that fixes the ring also histograms the float bits of the distances just
   below the safe radius (32 bins in registers); further passes re-histogram inside the bin that
@@ -116,7 +123,7 @@ def _distance(j: ti.i32, q: ti.math.vec3, sxyz: ti.template()) -> ti.f32:
 
 
 @ti.func
-def _heap_offer(heap_key: ti.template(), heap_idx: ti.template(), size: ti.i32, k: ti.i32,
+def _offer_best(best_key: ti.template(), best_idx: ti.template(), size: ti.i32, k: ti.i32,
                 key: ti.i32, idx: ti.i32) -> ti.i32:
     """Offer (key, idx) to the ascending list of the k smallest pairs so far (insertion from
     the end; the k-th is always at size - 1); returns the new size."""
@@ -124,23 +131,23 @@ def _heap_offer(heap_key: ti.template(), heap_idx: ti.template(), size: ti.i32, 
     if size < k:
         pos = size
         size += 1
-    elif _pair_less(key, idx, heap_key[k - 1], heap_idx[k - 1]):
+    elif _pair_less(key, idx, best_key[k - 1], best_idx[k - 1]):
         pos = k - 1
     if pos >= 0:
         while pos > 0:
-            if _pair_less(key, idx, heap_key[pos - 1], heap_idx[pos - 1]):
-                heap_key[pos] = heap_key[pos - 1]
-                heap_idx[pos] = heap_idx[pos - 1]
+            if _pair_less(key, idx, best_key[pos - 1], best_idx[pos - 1]):
+                best_key[pos] = best_key[pos - 1]
+                best_idx[pos] = best_idx[pos - 1]
                 pos -= 1
             else:
                 break
-        heap_key[pos] = key
-        heap_idx[pos] = idx
+        best_key[pos] = key
+        best_idx[pos] = idx
     return size
 
 
 @ti.func
-def _heap_emit(heap_key: ti.template(), heap_idx: ti.template(), size: ti.i32, k: ti.i32, qi: ti.i32,
+def _emit_best(best_key: ti.template(), best_idx: ti.template(), size: ti.i32, k: ti.i32, qi: ti.i32,
                self_slots: ti.i32, out_idx: ti.template(), out_dist: ti.template(),
                out_mean: ti.template(), emit_rows: ti.template()):
     """Write the row (ascending (distance, index)) or its mean (summed in that canonical order,
@@ -149,25 +156,25 @@ def _heap_emit(heap_key: ti.template(), heap_idx: ti.template(), size: ti.i32, k
     # roots, which may tie where the squares differ: an insertion pass restores (distance,
     # index) order among such ties
     for r in range(k):
-        heap_key[r] = ti.bit_cast(ti.sqrt(ti.bit_cast(heap_key[r], ti.f32)), ti.i32)
+        best_key[r] = ti.bit_cast(ti.sqrt(ti.bit_cast(best_key[r], ti.f32)), ti.i32)
     for r in range(1, k):
-        key = heap_key[r]
-        idx = heap_idx[r]
+        key = best_key[r]
+        idx = best_idx[r]
         pos = r
         while pos > 0:
-            if _pair_less(key, idx, heap_key[pos - 1], heap_idx[pos - 1]):
-                heap_key[pos] = heap_key[pos - 1]
-                heap_idx[pos] = heap_idx[pos - 1]
+            if _pair_less(key, idx, best_key[pos - 1], best_idx[pos - 1]):
+                best_key[pos] = best_key[pos - 1]
+                best_idx[pos] = best_idx[pos - 1]
                 pos -= 1
             else:
                 break
-        heap_key[pos] = key
-        heap_idx[pos] = idx
+        best_key[pos] = key
+        best_idx[pos] = idx
     dist_sum = 0.0
     for r in range(k):
-        dist = ti.bit_cast(heap_key[r], ti.f32)
+        dist = ti.bit_cast(best_key[r], ti.f32)
         if ti.static(emit_rows):
-            out_idx[qi, r] = heap_idx[r]
+            out_idx[qi, r] = best_idx[r]
             out_dist[qi, r] = dist
         else:
             dist_sum += dist
@@ -176,8 +183,8 @@ def _heap_emit(heap_key: ti.template(), heap_idx: ti.template(), size: ti.i32, k
 
 
 @ti.func
-def _offer_run(lo: ti.i32, hi: ti.i32, s: ti.i32, q: ti.math.vec3, heap_key: ti.template(),
-               heap_idx: ti.template(), size: ti.i32, k: ti.i32, order: ti.template(),
+def _offer_run(lo: ti.i32, hi: ti.i32, s: ti.i32, q: ti.math.vec3, best_key: ti.template(),
+               best_idx: ti.template(), size: ti.i32, k: ti.i32, order: ti.template(),
                sxyz: ti.template(), bound: ti.f32) -> ti.i32:
     """Offer the points at sorted positions [lo, hi) (except s, the query) that lie within
     ``bound`` (an upper bound on the k-th distance, +inf when none is known) to the list of
@@ -185,14 +192,14 @@ def _offer_run(lo: ti.i32, hi: ti.i32, s: ti.i32, q: ti.math.vec3, heap_key: ti.
     # keys are the float bits of squared distances (ordered as the floats, no sqrt per candidate)
     top = ti.bit_cast(bound * bound * 1.00001, ti.i32)
     if size == k:
-        top = ti.min(top, heap_key[k - 1])
+        top = ti.min(top, best_key[k - 1])
     for j in range(lo, hi):
         p = ti.math.vec3(sxyz[j, 0], sxyz[j, 1], sxyz[j, 2]) - q
         key = ti.bit_cast(p.dot(p), ti.i32)
         if key <= top and j != s:
-            size = _heap_offer(heap_key, heap_idx, size, k, key, order[j])
+            size = _offer_best(best_key, best_idx, size, k, key, order[j])
             if size == k:
-                top = ti.min(top, heap_key[k - 1])
+                top = ti.min(top, best_key[k - 1])
     return size
 
 
@@ -220,8 +227,8 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
                out_idx: ti.types.ndarray(dtype=ti.i32, ndim=2), out_dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
                out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.template()):
     """k <= SMALL_K, one occupied cell per iteration: the runs of its 27 neighbouring cells are
-    looked up once, then each of its points keeps a register heap of the nearest candidates from
-    them. A point whose k-th is not inside the cube's safe radius adds the cells of the second
+    looked up once, then each of its points keeps an ascending register list of the nearest
+    candidates from them. A point whose k-th is not inside the cube's safe radius adds the cells of the second
     ring that its k-th can reach; if that does not settle it either, it is marked in ``pending``
     (indexed by sorted position) for the ring-growing kernel."""
     ti.loop_config(block_dim=_CPU_GRAIN)
@@ -234,7 +241,7 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
         run_at = ti.Vector([0] * 27, ti.i32)          # the run's cell offset, packed
         n_runs = 0
         # own cell, then the 6 face, 12 edge and 8 corner neighbours: near candidates first,
-        # so the heap's k-th tightens early and most later candidates fail one comparison
+        # so the list's k-th tightens early and most later candidates fail one comparison
         for rank in range(4):
             for t in range(27):
                 d = ti.math.ivec3(t % 3 - 1, (t // 3) % 3 - 1, t // 9 - 1)
@@ -255,19 +262,19 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
             # the previous query's k nearest plus that query itself are k points other than q
             # within prev_kth + |q - prev_q|: a bound that rejects most candidates up front
             bound = (prev_kth + (q - prev_q).norm()) * 1.00001 + 1e-30
-            heap_key = ti.Vector([0] * SMALL_K, ti.i32)
-            heap_idx = ti.Vector([0] * SMALL_K, ti.i32)
+            best_key = ti.Vector([0] * SMALL_K, ti.i32)
+            best_idx = ti.Vector([0] * SMALL_K, ti.i32)
             size = 0
             for r in range(n_runs):
                 t = run_at[r]
                 d = ti.math.ivec3(t % 3 - 1, (t // 3) % 3 - 1, t // 9 - 1)
                 reach = bound
                 if size == k:
-                    reach = ti.min(reach, ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32)))
+                    reach = ti.min(reach, ti.sqrt(ti.bit_cast(best_key[k - 1], ti.f32)))
                 if _box_distance(u, c, d, cell_size) <= reach:
-                    size = _offer_run(run_lo[r], run_hi[r], s, q, heap_key, heap_idx, size, k, order, sxyz, bound)
+                    size = _offer_run(run_lo[r], run_hi[r], s, q, best_key, best_idx, size, k, order, sxyz, bound)
             settled = 0
-            if size == k and ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32)) < _safe_radius(u, c, 1, cell_size):
+            if size == k and ti.sqrt(ti.bit_cast(best_key[k - 1], ti.f32)) < _safe_radius(u, c, 1, cell_size):
                 settled = 1
             else:
                 for t in range(125):
@@ -275,17 +282,17 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
                     if ti.abs(d).max() == 2:
                         reach = bound
                         if size == k:
-                            reach = ti.min(reach, ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32)))
+                            reach = ti.min(reach, ti.sqrt(ti.bit_cast(best_key[k - 1], ti.f32)))
                         if _box_distance(u, c, d, cell_size) <= reach:
                             rg = _cell_run(c + d, bstart, scell, mask)
-                            size = _offer_run(rg[0], rg[1], s, q, heap_key, heap_idx, size, k, order, sxyz, bound)
-                if size == k and ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32)) < _safe_radius(u, c, 2, cell_size):
+                            size = _offer_run(rg[0], rg[1], s, q, best_key, best_idx, size, k, order, sxyz, bound)
+                if size == k and ti.sqrt(ti.bit_cast(best_key[k - 1], ti.f32)) < _safe_radius(u, c, 2, cell_size):
                     settled = 1
             if size == k:
                 prev_q = q
-                prev_kth = ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32))
+                prev_kth = ti.sqrt(ti.bit_cast(best_key[k - 1], ti.f32))
             if settled:
-                _heap_emit(heap_key, heap_idx, size, k, order[s], self_slots, out_idx, out_dist,
+                _emit_best(best_key, best_idx, size, k, order[s], self_slots, out_idx, out_dist,
                            out_mean, emit_rows)
             pending[s] = 1 - settled
 
@@ -313,8 +320,8 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
         q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
         cb = ti.math.ivec3(scell[s, 0], scell[s, 1], scell[s, 2]) >> block_bits
         u = (q - ti.math.vec3(ox, oy, oz)) * (inv_cell / ti.cast(block, ti.f32))
-        heap_key = ti.Vector([0] * SMALL_K, ti.i32)
-        heap_idx = ti.Vector([0] * SMALL_K, ti.i32)
+        best_key = ti.Vector([0] * SMALL_K, ti.i32)
+        best_idx = ti.Vector([0] * SMALL_K, ti.i32)
         size = 0
         ring = 0
         done = 0
@@ -325,7 +332,7 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                     if j != s:
                         bj = ti.math.ivec3(scell[j, 0], scell[j, 1], scell[j, 2]) >> block_bits
                         if ti.abs(bj - cb).max() >= ring:
-                            size = _offer_run(j, j + 1, s, q, heap_key, heap_idx, size, k, order, sxyz, ti.math.inf)
+                            size = _offer_run(j, j + 1, s, q, best_key, best_idx, size, k, order, sxyz, ti.math.inf)
                 done = 1
             else:
                 # the shell of blocks at Chebyshev distance ring: whole faces at dz or dy = +-ring,
@@ -340,7 +347,7 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                             d = ti.math.ivec3(dx, dy, dz)
                             visit = 1
                             if size == k:
-                                if _box_distance(u, cb, d, block_size) > ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32)):
+                                if _box_distance(u, cb, d, block_size) > ti.sqrt(ti.bit_cast(best_key[k - 1], ti.f32)):
                                     visit = 0
                             if visit:
                                 target = cb + d
@@ -348,13 +355,13 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                                 for j in range(bstart[base], bstart[base + span]):
                                     if scell[j, 0] >> block_bits == target[0] and scell[j, 1] >> block_bits == target[1] \
                                             and scell[j, 2] >> block_bits == target[2]:
-                                        size = _offer_run(j, j + 1, s, q, heap_key, heap_idx, size, k, order, sxyz, ti.math.inf)
+                                        size = _offer_run(j, j + 1, s, q, best_key, best_idx, size, k, order, sxyz, ti.math.inf)
                             dx += step
-                if size == k and ti.sqrt(ti.bit_cast(heap_key[k - 1], ti.f32)) < _safe_radius(u, cb, ring, block_size):
+                if size == k and ti.sqrt(ti.bit_cast(best_key[k - 1], ti.f32)) < _safe_radius(u, cb, ring, block_size):
                     done = 1
                 else:
                     ring += 1
-        _heap_emit(heap_key, heap_idx, size, k, qi, self_slots, out_idx, out_dist, out_mean, emit_rows)
+        _emit_best(best_key, best_idx, size, k, qi, self_slots, out_idx, out_dist, out_mean, emit_rows)
 
 
 @ti.func
