@@ -58,16 +58,12 @@ QUICK_SIZES = (50_000, 200_000)
 
 
 # ------------------------------------------------------------------------------ command line
-def _count(text: str) -> int:
-    t = text.strip().lower()
-    scale = {"k": 1_000, "m": 1_000_000}.get(t[-1:], 1)
-    try:
-        value = int(float(t[:-1] if scale != 1 else t) * scale)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a point count: {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"point count must be > 0, got {text!r}")
-    return value
+def _point_count(text: str) -> int:
+    # imported here: anchor workers import this module and must not pay for Taichi's import
+    from roadx_ti.config import parse_point_count
+
+    return parse_point_count(text)
+
 
 
 def _list(text: str) -> list[str]:
@@ -81,9 +77,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "size when present), few repeats: a smoke run of the harness")
     p.add_argument("--backends", type=_list, metavar="B[,B..]",
                    help="Taichi backends (default: cpu,vulkan,cuda; unavailable ones are reported missing)")
-    p.add_argument("--sizes", type=lambda s: [_count(v) for v in _list(s)], metavar="N[,N..]",
+    p.add_argument("--sizes", type=lambda s: [_point_count(v) for v in _list(s)], metavar="N[,N..]",
                    help="scene sizes in points, e.g. 1M,4M,16M (the default)")
-    p.add_argument("--anchor-sizes", type=lambda s: [_count(v) for v in _list(s)], metavar="N[,N..]",
+    p.add_argument("--anchor-sizes", type=lambda s: [_point_count(v) for v in _list(s)], metavar="N[,N..]",
                    help="run the anchors at these sizes only (default: every size), e.g. 1M,4M to spare "
                         "minutes of single-threaded reference code at 16M")
     p.add_argument("--stages", type=_list, metavar="S[,S..]", help=f"stages (default: all): {', '.join(STAGES)}")

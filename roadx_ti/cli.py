@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from roadx_ti import __version__
+from roadx_ti.config import parse_point_count
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
 log = logging.getLogger("roadx_ti")
@@ -58,7 +59,7 @@ def _parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("synth", help="write a synthetic scene with truth classes")
     s.add_argument("--kind", required=True, choices=["uav-road", "als-roof"])
-    s.add_argument("--points", required=True, type=_count)
+    s.add_argument("--points", required=True, type=parse_point_count)
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("-o", "--output", required=True)
     b = sub.add_parser("bench", help="benchmarks: kernels and pipelines against their anchors")
@@ -70,18 +71,6 @@ def _parser() -> argparse.ArgumentParser:
     accuracy.add_arguments(a)
     return p
 
-
-def _count(text: str) -> int:
-    """Point counts like 1000000, 1M, 250k."""
-    t = text.strip().lower()
-    scale = {"k": 1_000, "m": 1_000_000}.get(t[-1:], 1)
-    try:
-        value = int(float(t[:-1] if scale != 1 else t) * scale)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a point count: {text!r}") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"point count must be > 0, got {text!r}")
-    return value
 
 
 def _classes(text: str, flag: str) -> list[int]:

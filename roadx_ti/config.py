@@ -146,6 +146,21 @@ def _one_line(exc: ValidationError, prefix: str = "") -> str:
     return f"config error: {key} = {err.get('input')!r}: {msg}{more}"
 
 
+def parse_point_count(text: str) -> int:
+    """Point counts as users type them: 1000000, 1M, 250k (argparse type: bad text is a usage error)."""
+    import argparse
+
+    t = text.strip().lower()
+    scale = {"k": 1_000, "m": 1_000_000}.get(t[-1:], 1)
+    try:
+        value = int(float(t[:-1] if scale != 1 else t) * scale)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a point count: {text!r}") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"point count must be > 0, got {text!r}")
+    return value
+
+
 def parse_value(text: str):
     """A --set value: YAML scalar syntax (numbers, true/false, null, [lists])."""
     try:

@@ -9,6 +9,8 @@ import textwrap
 
 import pytest
 
+from roadx_ti.config import parse_point_count
+
 from roadx_ti import bench
 
 REQUIRED = {"stage", "points", "backend", "impl", "median_s", "first_call_s", "peak_rss_mb", "mpts_per_s",
@@ -125,6 +127,6 @@ def test_unknown_stage_is_a_usage_error(tmp_path):
 
 
 def test_point_counts():
-    assert bench._count("1M") == 1_000_000 and bench._count("250k") == 250_000 and bench._count("1200") == 1200
+    assert parse_point_count("1M") == 1_000_000 and parse_point_count("250k") == 250_000 and parse_point_count("1200") == 1200
     with pytest.raises(argparse.ArgumentTypeError):
-        bench._count("lots")
+        parse_point_count("lots")
