@@ -35,6 +35,8 @@ def test_run_demo_config_end_to_end(tmp_path, road_scene):
     before = road_scene.read_bytes()
     proc = run_cli("run", str(REPO / "configs" / "demo.yaml"), "--input", str(road_scene),
                    "--output", str(out), "--backend", "cpu", "--set", "stages.uniform_downsample.ratio=0.8",
+                   # the target's minimum size is in points: scale it to this 60k-point scene
+                   "--set", "stages.color_growing.min_target_size=300",
                    "--quiet")
     assert proc.returncode == 0, proc.stderr
     assert road_scene.read_bytes() == before          # input untouched
