@@ -12,7 +12,6 @@ Clouds come from a drawn (kind, size, seed, scale): numpy builds them, so hypoth
 shapes (duplicates, collinear, all identical, lattices, tiny n) rather than float bit patterns.
 """
 
-from collections import deque
 
 import numpy as np
 import pytest
@@ -21,6 +20,8 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 from roadx_ti.kernels import cloth, grid, grid_min, labels, neighbors
+
+from references import flood_fill
 
 # no shrinking: a failing kernel example is printed as drawn (shrinking re-runs kernels for minutes)
 PHASES = [Phase.explicit, Phase.reuse, Phase.generate]
@@ -125,32 +126,6 @@ def test_cell_minimum_matches_numpy(ti_arch, cloud, step_frac, snap):
 
 
 # --------------------------------------------------------------------------- label propagation
-def flood_fill(neighbors, edge_ok, active) -> np.ndarray:
-    """Breadth-first flood fill from each unlabelled active point in index order: every
-    component is labelled with its smallest index; inactive points -1."""
-    n, k = neighbors.shape
-    adjacency = [[] for _ in range(n)]
-    for i in range(n):
-        for j in range(k):
-            b = int(neighbors[i, j])
-            if b >= 0 and edge_ok[i, j] and active[i] and active[b]:
-                adjacency[i].append(b)
-                adjacency[b].append(i)
-    out = np.full(n, -1, np.int32)
-    for seed in range(n):
-        if out[seed] >= 0 or not active[seed]:
-            continue
-        out[seed] = seed
-        queue = deque([seed])
-        while queue:
-            a = queue.popleft()
-            for b in adjacency[a]:
-                if out[b] < 0:
-                    out[b] = seed
-                    queue.append(b)
-    return out
-
-
 @SETTINGS
 @given(n=st.integers(1, 120), k=st.integers(1, 6), seed=st.integers(0, 2**16),
        density=st.floats(0, 1), shape=st.sampled_from(["random", "chain", "star", "self"]))
