@@ -23,7 +23,9 @@ Follows the `cloth-simulation-filter` package (jianboqi/CSF) step by step, in it
 The package runs the constraint passes as one sequential (Gauss-Seidel) sweep in particle order.
 Here the same per-particle passes are swept in particle order within bands of BAND_ROWS rows;
 every other band runs in parallel (they touch disjoint rows), then the rest, so the result is
-deterministic and differs from the package only in the order at band borders.
+deterministic and differs from the package only in the order at band borders. With a
+``lattice_origin`` (a world lattice) the bands and their parity lie on world rows, so the tiles of
+one survey and the whole survey sweep every particle in the same order.
 
 Cost: each band keeps the list of its active particles (movable, or with a movable neighbour:
 the only ones whose constraint pass does anything), refreshed every ITERATIONS_PER_CHECK
@@ -63,6 +65,8 @@ _DOUBLE_MOVE = (0, 0.3, 0.42, 0.468, 0.4872, 0.4949, 0.498, 0.4992, 0.4997, 0.49
 _NEIGHBOUR_DI = (-1, -1, -1, 0, 1, 1, 0, 1, -2, -2, -2, 0, 2, 2, 0, 2)
 _NEIGHBOUR_DJ = (-1, 0, 1, -1, -1, 0, 1, 1, -2, 0, 2, -2, -2, 0, 2, 2)
 BAND_ROWS = 32             # rows swept in particle order by one thread (>= 4 for disjoint bands)
+LATTICE_PERIOD = 2 * BAND_ROWS   # particles: a lattice_origin is a world multiple of this many
+                                 # resolutions, which fixes the world rows of bands and their parity
 
 _NO_POINT = -1
 _FILLED_BY_SEARCH = 2
@@ -249,6 +253,25 @@ def _threads_per_band_block():
     return 1 if _host_memory_backend() else None
 
 
+@ti.func
+def _band_row_range(b, rows, band_rows, band_shift) -> ti.math.ivec2:
+    """Rows [lo, hi) of band b: bands are laid on world rows (multiples of band_rows from the
+    lattice's period origin), so that the tiles of a survey and the whole survey cut the cloth
+    into the same bands; band_shift is the lattice row of row 0 modulo band_rows."""
+    return ti.math.ivec2(ti.max(b * band_rows - band_shift, 0), ti.min((b + 1) * band_rows - band_shift, rows))
+
+
+@ti.func
+def _phase_band(t, bands, band_phase):
+    """t-th band of the sweep order: the bands of even world index first, then the odd ones
+    (band_phase: world index parity of band 0)."""
+    first = (bands - band_phase + 1) // 2     # bands of even world index
+    b = 2 * t + band_phase
+    if t >= first:
+        b = 2 * (t - first) + 1 - band_phase
+    return b
+
+
 @ti.kernel
 def _init_cloth(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
                 old_pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
@@ -256,14 +279,15 @@ def _init_cloth(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
                 band_list: ti.types.ndarray(dtype=ti.i32, ndim=1),
                 band_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
                 state: ti.types.ndarray(dtype=ti.i32, ndim=1), start: ti.f32, width: ti.i32,
-                rows: ti.i32, band_rows: ti.i32):
+                rows: ti.i32, band_rows: ti.i32, band_shift: ti.i32):
     for c in pos:
         pos[c] = start
         old_pos[c] = start
         movable[c] = 1
         band_list[c] = c        # band b lists its particles in its own cell range
     for b in band_count:
-        band_count[b] = (ti.min(rows, (b + 1) * band_rows) - b * band_rows) * width
+        span = _band_row_range(b, rows, band_rows, band_shift)
+        band_count[b] = (span[1] - span[0]) * width
     for _ in range(1):
         state[0] = 0   # 1 once stopped
         state[1] = 0   # iterations run
@@ -282,10 +306,10 @@ def _any_neighbour_movable(movable: ti.template(), i, j, width, rows):
 
 @ti.func
 def _refresh_band(b, movable: ti.template(), band_list: ti.template(), band_count: ti.template(),
-                  width, rows, band_rows):
+                  width, rows, band_rows, band_shift):
     # drop the particles that became inactive, in place and in order; movability only ever
     # ends, so a particle inactive now stays inactive
-    begin = b * band_rows * width
+    begin = _band_row_range(b, rows, band_rows, band_shift)[0] * width
     kept = begin
     for e in range(begin, begin + band_count[b]):
         c = band_list[e]
@@ -300,9 +324,9 @@ def _refresh_band(b, movable: ti.template(), band_list: ti.template(), band_coun
 
 @ti.func
 def _verlet_band(b, pos: ti.template(), old_pos: ti.template(), movable: ti.template(),
-                 band_list: ti.template(), band_count: ti.template(), width, band_rows,
-                 acceleration):
-    begin = b * band_rows * width
+                 band_list: ti.template(), band_count: ti.template(), width, rows, band_rows,
+                 band_shift, acceleration):
+    begin = _band_row_range(b, rows, band_rows, band_shift)[0] * width
     for e in range(begin, begin + band_count[b]):
         c = band_list[e]
         if movable[c] == 1:
@@ -314,11 +338,11 @@ def _verlet_band(b, pos: ti.template(), old_pos: ti.template(), movable: ti.temp
 @ti.func
 def _collide_band(b, pos: ti.template(), old_pos: ti.template(), movable: ti.template(),
                   height: ti.template(), band_list: ti.template(), band_count: ti.template(),
-                  band_max: ti.template(), width, band_rows):
+                  band_max: ti.template(), width, rows, band_rows, band_shift):
     # largest displacement of a movable particle (before collision, as the package), then the
     # collision: a particle below its collision height is put on it and becomes immovable
     largest = 0.0
-    begin = b * band_rows * width
+    begin = _band_row_range(b, rows, band_rows, band_shift)[0] * width
     for e in range(begin, begin + band_count[b]):
         c = band_list[e]
         if movable[c] == 1:
@@ -389,8 +413,8 @@ def _constraint_pass(pos: ti.template(), movable: ti.template(), c, width, rows,
 
 @ti.func
 def _sweep_band(b, pos: ti.template(), movable: ti.template(), band_list: ti.template(),
-                band_count: ti.template(), width, rows, band_rows, moves):
-    begin = b * band_rows * width
+                band_count: ti.template(), width, rows, band_rows, band_shift, moves):
+    begin = _band_row_range(b, rows, band_rows, band_shift)[0] * width
     for e in range(begin, begin + band_count[b]):
         _constraint_pass(pos, movable, band_list[e], width, rows, moves)
 
@@ -399,10 +423,10 @@ def _sweep_band(b, pos: ti.template(), movable: ti.template(), band_list: ti.tem
 def _refresh_active(movable: ti.types.ndarray(dtype=ti.i32, ndim=1),
                     band_list: ti.types.ndarray(dtype=ti.i32, ndim=1),
                     band_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                    width: ti.i32, rows: ti.i32, band_rows: ti.i32):
+                    width: ti.i32, rows: ti.i32, band_rows: ti.i32, band_shift: ti.i32):
     ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
     for b in band_count:
-        _refresh_band(b, movable, band_list, band_count, width, rows, band_rows)
+        _refresh_band(b, movable, band_list, band_count, width, rows, band_rows, band_shift)
 
 
 @ti.kernel
@@ -414,31 +438,32 @@ def _iterate(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
              band_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
              band_max: ti.types.ndarray(dtype=ti.i32, ndim=1),
              state: ti.types.ndarray(dtype=ti.i32, ndim=1), width: ti.i32, rows: ti.i32,
-             band_rows: ti.i32, acceleration: ti.f32, moves: ti.math.vec4,
-             iterations: ti.i32, bands: ti.i32):
+             band_rows: ti.i32, band_shift: ti.i32, band_phase: ti.i32, acceleration: ti.f32,
+             moves: ti.math.vec4, iterations: ti.i32, bands: ti.i32):
     # one iteration of the package's loop, bands in parallel: Verlet step, constraint sweep
-    # (every other band, they touch disjoint rows, then the others), largest displacement and
+    # (the bands of even world index, they touch disjoint rows, then the odd ones), largest
+    # displacement and
     # collision, stop test; nothing once stopped
     ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
     for b in range(bands):
         if state[0] == 0:
-            _verlet_band(b, pos, old_pos, movable, band_list, band_count, width, band_rows,
-                         acceleration)
+            _verlet_band(b, pos, old_pos, movable, band_list, band_count, width, rows, band_rows,
+                         band_shift, acceleration)
     ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
-    for t in range((bands + 1) // 2):
+    for t in range((bands - band_phase + 1) // 2):
         if state[0] == 0:
-            _sweep_band(2 * t, pos, movable, band_list, band_count, width, rows, band_rows,
-                        moves)
+            _sweep_band(2 * t + band_phase, pos, movable, band_list, band_count, width, rows,
+                        band_rows, band_shift, moves)
     ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
-    for t in range(bands // 2):
+    for t in range((bands - 1 + band_phase + 1) // 2):
         if state[0] == 0:
-            _sweep_band(2 * t + 1, pos, movable, band_list, band_count, width, rows, band_rows,
-                        moves)
+            _sweep_band(2 * t + 1 - band_phase, pos, movable, band_list, band_count, width, rows,
+                        band_rows, band_shift, moves)
     ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
     for b in range(bands):
         if state[0] == 0:
             _collide_band(b, pos, old_pos, movable, height, band_list, band_count, band_max,
-                          width, band_rows)
+                          width, rows, band_rows, band_shift)
     for _ in range(1):
         if state[0] == 0:
             _stop_test(band_max, state, iterations)
@@ -453,9 +478,9 @@ def _simulate_serial(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
                      band_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
                      band_max: ti.types.ndarray(dtype=ti.i32, ndim=1),
                      state: ti.types.ndarray(dtype=ti.i32, ndim=1), width: ti.i32, rows: ti.i32,
-                     band_rows: ti.i32, acceleration: ti.f32, moves: ti.math.vec4,
-                     iterations: ti.i32, refresh_every: ti.i32,
-                     bands: ti.i32):
+                     band_rows: ti.i32, band_shift: ti.i32, band_phase: ti.i32,
+                     acceleration: ti.f32, moves: ti.math.vec4, iterations: ti.i32,
+                     refresh_every: ti.i32, bands: ti.i32):
     # the same steps in the same order as _refresh_active + _iterate, all iterations in one
     # thread and one launch: for small cloths, where per-iteration launches and thread wake-ups
     # would cost more than the work. CPU only: the SPIR-V backends do not serialize the loop.
@@ -464,19 +489,18 @@ def _simulate_serial(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
         if state[0] == 0:
             if it > 0 and it % refresh_every == 0:
                 for b in range(bands):
-                    _refresh_band(b, movable, band_list, band_count, width, rows, band_rows)
+                    _refresh_band(b, movable, band_list, band_count, width, rows, band_rows,
+                                  band_shift)
             for b in range(bands):
-                _verlet_band(b, pos, old_pos, movable, band_list, band_count, width, band_rows,
-                             acceleration)
+                _verlet_band(b, pos, old_pos, movable, band_list, band_count, width, rows,
+                             band_rows, band_shift, acceleration)
             for t in range(bands):
-                # even bands first, then odd ones, as the two parallel phases
-                half = (bands + 1) // 2
-                b = 2 * t if t < half else 2 * (t - half) + 1
-                _sweep_band(b, pos, movable, band_list, band_count, width, rows, band_rows,
-                            moves)
+                # in the order of the two parallel phases
+                _sweep_band(_phase_band(t, bands, band_phase), pos, movable, band_list, band_count,
+                            width, rows, band_rows, band_shift, moves)
             for b in range(bands):
                 _collide_band(b, pos, old_pos, movable, height, band_list, band_count, band_max,
-                              width, band_rows)
+                              width, rows, band_rows, band_shift)
             _stop_test(band_max, state, iterations)
 
 
@@ -659,17 +683,20 @@ def _grid(keys: np.ndarray, resolution: float, lattice_origin=None):
         rows = int(math.floor((hi[1] - lo[1]) / resolution)) + 2 * BUFFER_PARTICLES
         x0 = float(np.float32(lo[0] - BUFFER_PARTICLES * resolution))
         y0 = float(np.float32(lo[1] - BUFFER_PARTICLES * resolution))
-        return lo, hi, cols, rows, x0, y0
+        return lo, hi, cols, rows, x0, y0, 0
     # particles on a fixed lattice (first particle snapped down onto it), so clouds cut from one
-    # survey (tiles) share their particles with the whole run
+    # survey (tiles) share their particles, and their bands, with the whole run
     corner = []
     counts = []
+    steps = []
     for axis in (0, 1):
         start = lo[axis] - BUFFER_PARTICLES * resolution
-        start = lattice_origin[axis] + math.floor((start - lattice_origin[axis]) / resolution) * resolution
+        step = math.floor((start - lattice_origin[axis]) / resolution)
+        start = lattice_origin[axis] + step * resolution
         corner.append(float(np.float32(start)))
         counts.append(int(math.ceil((hi[axis] - start) / resolution)) + BUFFER_PARTICLES)
-    return lo, hi, counts[0], counts[1], corner[0], corner[1]
+        steps.append(step)
+    return lo, hi, counts[0], counts[1], corner[0], corner[1], steps[1]
 
 
 def f32_from_key(key) -> float:
@@ -687,14 +714,18 @@ def _fill_i32(shape, value):
 
 def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: float = 0.65,
         iterations: int = 500, class_threshold: float = 0.5,
-        slope_smooth: bool = False, lattice_origin=None) -> ClothResult:
+        slope_smooth: bool = False, lattice_origin=None, start_z: float = None) -> ClothResult:
     """Cloth simulation filter of the (n, 3) float32 local points ``xyz`` (numpy or ndarray).
 
     Parameters mirror the `cloth-simulation-filter` package (``interations`` -> ``iterations``,
     ``bSloopSmooth`` -> ``slope_smooth``). Returns a ClothResult; ``ground`` is numpy either way.
     ``lattice_origin`` (x, y), local coordinates: lay the particles on that point plus multiples of
     the resolution instead of the package's bounding-box layout, so that tiles of one survey and
-    the whole survey share one lattice (None: the package's layout).
+    the whole survey share one lattice (None: the package's layout); it should be a world multiple
+    of LATTICE_PERIOD resolutions, so that the simulation's bands lie on the same world rows too.
+    ``start_z`` (local z): the cloth starts above min(start_z, lowest point) instead of the lowest
+    point (tiles of one survey pass the survey's lowest z: a cloth falling from another height
+    collides at other speeds and settles differently).
     """
     if not cloth_resolution > 0:
         raise ValueError("cloth_resolution must be > 0")
@@ -713,7 +744,7 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
 
     keys = _fill_i32((6,), _KEY_MAX)
     _bbox(points, keys, BBOX_CHUNK)
-    lo, hi, cols, rows, x0, y0 = _grid(keys.to_numpy(), res, lattice_origin)
+    lo, hi, cols, rows, x0, y0, lattice_row = _grid(keys.to_numpy(), res, lattice_origin)
     cells = cols * rows
     if cells >= 2**31 - 1:
         raise ValueError("cloth grid too large for 32-bit indexing; use a coarser resolution")
@@ -744,12 +775,15 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
     old_pos = ndarray(np.float32, (cells,))
     movable = ndarray(np.int32, (cells,))
     state = ndarray(np.int32, (2,))
-    bands = (rows + BAND_ROWS - 1) // BAND_ROWS
+    band_shift = lattice_row % BAND_ROWS
+    band_phase = (lattice_row // BAND_ROWS) % 2
+    bands = (rows + band_shift + BAND_ROWS - 1) // BAND_ROWS
     band_list = ndarray(np.int32, (cells,))
     band_count = ndarray(np.int32, (bands,))
     band_max = ndarray(np.int32, (bands,))
+    floor_z = lo[2] if start_z is None else min(lo[2], float(start_z))
     _init_cloth(pos, old_pos, movable, band_list, band_count, state,
-                float(-lo[2] + CLOTH_START_ABOVE), cols, rows, BAND_ROWS)
+                float(-floor_z + CLOTH_START_ABOVE), cols, rows, BAND_ROWS, band_shift)
     # the package pre-multiplies gravity by time_step^2 and multiplies by it again in the
     # Verlet step: the displacement per step is gravity * time_step^4
     acceleration = -GRAVITY * time_step ** 4
@@ -759,16 +793,17 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
     moves = ti.math.vec4(single, double, 1.0 - single, 1.0 - double)
     if _serial_simulation(cells):
         _simulate_serial(pos, old_pos, movable, height, band_list, band_count, band_max, state,
-                         cols, rows, BAND_ROWS, acceleration, moves, int(iterations),
-                         ITERATIONS_PER_CHECK, bands)
+                         cols, rows, BAND_ROWS, band_shift, band_phase, acceleration, moves,
+                         int(iterations), ITERATIONS_PER_CHECK, bands)
     done = 0
     while done < iterations and state.to_numpy()[0] == 0:
         batch = min(ITERATIONS_PER_CHECK, iterations - done)
         if done > 0:
-            _refresh_active(movable, band_list, band_count, cols, rows, BAND_ROWS)
+            _refresh_active(movable, band_list, band_count, cols, rows, BAND_ROWS, band_shift)
         for _ in range(batch):
             _iterate(pos, old_pos, movable, height, band_list, band_count, band_max, state, cols,
-                     rows, BAND_ROWS, acceleration, moves, int(iterations), bands)
+                     rows, BAND_ROWS, band_shift, band_phase, acceleration, moves,
+                     int(iterations), bands)
         done += batch
         if state.to_numpy()[0] == 1:
             break

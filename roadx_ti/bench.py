@@ -915,11 +915,17 @@ def plot_throughput(runs: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
+SEPARATE_SECTION = "## Measured separately"   # kept as it is when RESULTS.md is regenerated
+
+
 def write_results(runs: list[dict], results: Path, plot: Path) -> None:
     results.parent.mkdir(parents=True, exist_ok=True)
     text = render_markdown(runs)
     text = text.replace("## Summary", f"![throughput against size]({os.path.relpath(plot, results.parent)})\n\n"
                                       "## Summary", 1)
+    old = results.read_text() if results.exists() else ""
+    if SEPARATE_SECTION in old:   # runs made outside the harness (CLI runs, the tiling benchmark)
+        text = text.rstrip("\n") + "\n\n" + old[old.index(SEPARATE_SECTION):]
     results.write_text(text)
     plot_throughput(runs, plot)
 

@@ -141,10 +141,11 @@ def test_deterministic(ti_arch):
     np.testing.assert_array_equal(a.cloth_z, b.cloth_z)
 
 
-def test_schedules_and_active_lists_do_not_change_results(ti_arch, monkeypatch):
+@pytest.mark.parametrize("lattice", [None, (0.25, 6.75)])   # (0.25, 6.75): bands shifted 16 rows, odd parity
+def test_schedules_and_active_lists_do_not_change_results(ti_arch, monkeypatch, lattice):
     """The one-launch serial schedule (CPU only) and the banded parallel one run the same passes
     in the same order, and dropping settled particles from the work lists skips only no-op
-    passes: all give bit-identical cloths."""
+    passes: all give bit-identical cloths, with the package's bands or world-aligned ones."""
     xyz, _ = terrain(3000 if ti_arch == "vulkan" else 20000, seed=13, extent=30.0, boxes=2)
     schedules = [(False, cloth.ITERATIONS_PER_CHECK), (False, 10**6)]
     if ti_arch == "cpu":
@@ -155,12 +156,33 @@ def test_schedules_and_active_lists_do_not_change_results(ti_arch, monkeypatch):
         monkeypatch.setattr(cloth, "ITERATIONS_PER_CHECK", refresh)
         # iterations capped: without refreshes the host launches all of them before reading
         # the stop flag (slow on lavapipe)
-        results.append(cloth.csf(xyz, cloth_resolution=0.5, iterations=40))
+        results.append(cloth.csf(xyz, cloth_resolution=0.5, iterations=40, lattice_origin=lattice))
     assert len(results[0].cloth_z) > cloth.BAND_ROWS   # several bands: both phases run
     for other in results[1:]:
         assert other.iterations == results[0].iterations
         np.testing.assert_array_equal(other.cloth_z, results[0].cloth_z)
         np.testing.assert_array_equal(other.ground, results[0].ground)
+
+
+def test_a_tile_with_the_survey_lattice_and_start_keeps_the_whole_cloth():
+    """A crop of a sloping survey (a tile with a 15 m buffer on its cut side), given the survey's
+    lattice and lowest z, lays nearly the whole survey's cloth over its core: same labels there."""
+    xyz, _ = terrain(60000, seed=5, extent=80.0, boxes=8)
+    xyz[:, 2] += 0.15 * xyz[:, 0]           # the crop's lowest point is 4.5 m above the survey's
+    lattice = (0.25, 6.75)
+    whole = cloth.csf(xyz, cloth_resolution=0.5, lattice_origin=lattice)
+    crop, core = xyz[:, 0] >= 30.0, xyz[:, 0] >= 45.0
+
+    def core_gap(start_z):
+        part = cloth.csf(xyz[crop], cloth_resolution=0.5, lattice_origin=lattice, start_z=start_z)
+        assert np.array_equal(part.ground[core[crop]], whole.ground[core])
+        dx, dy = (int(round((a - b) / 0.5)) for a, b in ((part.x0, whole.x0), (part.y0, whole.y0)))
+        rows, cols = part.cloth_z.shape
+        in_core = part.x0 + 0.5 * np.arange(cols) >= 45.0
+        return np.abs(whole.cloth_z[dy:dy + rows, dx:dx + cols][:, in_core] - part.cloth_z[:, in_core]).max()
+
+    own_start, survey_start = core_gap(None), core_gap(float(xyz[:, 2].min()))
+    assert survey_start < 0.1 and survey_start < own_start / 2, (survey_start, own_start)
 
 
 def test_ndarray_input_matches_numpy_input(ti_arch):

@@ -147,10 +147,11 @@ def test_real_las_cloud_fields_match_laspy(shared_data):
 
 def test_read_headers_match_laspy(shared_data):
     files = real_files(shared_data)
-    for path, bounds, count in io.read_headers(files):
+    for path, bounds, count, z_range in io.read_headers(files):
         h = laspy.open(path).header
         assert count == h.point_count
         assert bounds == (h.mins[0], h.mins[1], h.maxs[0], h.maxs[1])
+        assert z_range == (h.mins[2], h.maxs[2])
 
 
 def test_bounds_windows_partition_the_file(shared_data):

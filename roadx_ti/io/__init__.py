@@ -5,7 +5,7 @@
     roadx_ti.io.write("out.laz", cloud, classification=labels,
                       extra_dims={"roadx_label": lab_u8, "segment_id": seg_i32})
     roadx_ti.io.info("tile.laz")   -> dict (count, bounds, format, dimensions, colour, classes, CRS)
-    roadx_ti.io.read_headers(paths) -> [(path, (xmin, ymin, xmax, ymax), point_count), ...]
+    roadx_ti.io.read_headers(paths) -> [(path, (xmin, ymin, xmax, ymax), point_count, (zmin, zmax)), ...]
 
 The format follows the extension. Problems with the user's files raise ``InputError`` (a
 ValueError) with one line 'PATH: problem'. Outputs are written atomically and never over an input
@@ -132,21 +132,22 @@ def info(path) -> dict:
     }
 
 
-def read_headers(paths) -> list[tuple[str, tuple[float, float, float, float], int]]:
-    """[(path, (xmin, ymin, xmax, ymax), point_count)] per file, from the LAS header alone (other
-    formats have no header bounds and are read). Bounds are the header's, max inclusive."""
+def read_headers(paths) -> list[tuple[str, tuple[float, float, float, float], int, tuple[float, float]]]:
+    """[(path, (xmin, ymin, xmax, ymax), point_count, (zmin, zmax))] per file, from the LAS header
+    alone (other formats have no header bounds and are read). Bounds are the header's, max inclusive."""
     out = []
     for p in paths:
         path = Path(p)
         kind = _kind(path)
         _check_input(path)
         if kind == "las":
-            count, bounds = _las.read_header_las(path)
+            count, bounds, z_range = _las.read_header_las(path)
         else:
             cloud = read(path)
             world = cloud.xyz.astype(np.float64) + cloud.origin
             count = cloud.n
             bounds = ((float(world[:, 0].min()), float(world[:, 1].min()), float(world[:, 0].max()),
                        float(world[:, 1].max())) if count else (0.0, 0.0, 0.0, 0.0))
-        out.append((str(p), bounds, count))
+            z_range = (float(world[:, 2].min()), float(world[:, 2].max())) if count else (0.0, 0.0)
+        out.append((str(p), bounds, count, z_range))
     return out

@@ -77,14 +77,34 @@ def _local_origin(header_mins, header_maxs, scales, world: np.ndarray) -> np.nda
     return np.floor(lo)  # header box is stale or wrong: fall back to the data
 
 
+def is_copc(header) -> bool:
+    """A Cloud Optimized Point Cloud: its first VLR is the 'copc' info record."""
+    return any(v.user_id == "copc" and v.record_id == 1 for v in header.vlrs)
+
+
+def _read_copc_window(path, header, bounds) -> np.ndarray:
+    """COPC: decompress only the octree nodes that meet the window (laspy's bounds query, in file
+    order: the nodes are read by offset), then keep the half-open window exactly."""
+    xmin, ymin, xmax, ymax = bounds
+    pad = np.asarray(header.scales[:2], np.float64)   # the query rounds to the integer grid
+    query = laspy.copc.Bounds(mins=np.array([xmin, ymin]) - pad, maxs=np.array([xmax, ymax]) + pad)
+    with laspy.CopcReader.open(str(path)) as copc:
+        points = copc.query(bounds=query)
+    x, y = np.asarray(points.x), np.asarray(points.y)
+    return points.array[(x >= xmin) & (x < xmax) & (y >= ymin) & (y < ymax)]
+
+
 def _read_window(path, reader, bounds) -> laspy.ScaleAwarePointRecord:
-    """Points with xmin <= x < xmax and ymin <= y < ymax, read chunk by chunk."""
+    """Points with xmin <= x < xmax and ymin <= y < ymax, in file order: from a COPC file's
+    octree nodes that meet the window, otherwise read chunk by chunk."""
     header = reader.header
     xmin, ymin, xmax, ymax = (float(b) for b in bounds)
     kept = []
     hmin, hmax = header.mins, header.maxs
     disjoint = hmax[0] < xmin or hmin[0] >= xmax or hmax[1] < ymin or hmin[1] >= ymax
-    if not disjoint:
+    if not disjoint and is_copc(header):
+        kept.append(_read_copc_window(path, header, (xmin, ymin, xmax, ymax)))
+    elif not disjoint:
         seen = 0
         for chunk in reader.chunk_iterator(CHUNK_POINTS):
             seen += len(chunk)
@@ -218,10 +238,21 @@ def _set_extra_dims(path, header, array: np.ndarray, extra: dict) -> laspy.Scale
     return record
 
 
+def _plain_header(header) -> laspy.LasHeader:
+    """A copy of a read header to write with: without a COPC file's octree records (an output is a
+    plain LAS/LAZ in a new point order; laspy does not write COPC)."""
+    header = copy.deepcopy(header)
+    if is_copc(header):
+        header.vlrs = laspy.vlrs.vlrlist.VLRList([v for v in header.vlrs if v.user_id != "copc"])
+        if header.evlrs is not None:
+            header.evlrs = laspy.vlrs.vlrlist.VLRList([v for v in header.evlrs if v.user_id != "copc"])
+    return header
+
+
 def _las_from_record(path, src, n: int, classification, extra_dims, index) -> laspy.LasData:
     if len(src.points) != n:
         raise ValueError(f"cloud has {n} points but its LAS record has {len(src.points)}")
-    header = copy.deepcopy(src.header)
+    header = _plain_header(src.header)
     array = src.points.array if index is None else src.points.array[index]
     classes = None if classification is None else _classes(path, per_point("classification", classification, n, index))
     fmt_id = header.point_format.id
@@ -308,11 +339,12 @@ def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subse
 # ------------------------------------------------------------------------------- header look-ups
 
 def read_header_las(path):
-    """(point count, (xmin, ymin, xmax, ymax)) from the header alone."""
+    """(point count, (xmin, ymin, xmax, ymax), (zmin, zmax)) from the header alone."""
     try:
         with laspy.open(path) as reader:
             h = reader.header
-            return int(h.point_count), (float(h.mins[0]), float(h.mins[1]), float(h.maxs[0]), float(h.maxs[1]))
+            return (int(h.point_count), (float(h.mins[0]), float(h.mins[1]), float(h.maxs[0]), float(h.maxs[1])),
+                    (float(h.mins[2]), float(h.maxs[2])))
     except LAS_ERRORS as exc:
         raise _las_error(path, exc) from exc
 
@@ -373,7 +405,7 @@ def info_las(path) -> dict:
         color = f"{depth}-bit"
     return {
         "path": str(path),
-        "format": "laz" if str(path).lower().endswith(".laz") else "las",
+        "format": "copc" if is_copc(h) else ("laz" if str(path).lower().endswith(".laz") else "las"),
         "point_count": int(h.point_count),
         "bounds": {"min": lo.tolist(), "max": hi.tolist()} if seen else None,
         "point_format": int(fmt.id),

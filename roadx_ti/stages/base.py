@@ -44,6 +44,10 @@ class StageResult:
     info: dict[str, Any] = field(default_factory=dict)  # counts and facts for the summary JSON
 
 
+# ctx.facts key: local z of the lowest point of the whole survey a cloud was cut from (tiled runs)
+SURVEY_Z_MIN = "survey_z_min"
+
+
 @dataclass
 class StageContext:
     seed: int = 0

@@ -8,8 +8,13 @@ from __future__ import annotations
 from pydantic import Field
 
 from roadx_ti.cloud import Cloud
-from roadx_ti.kernels.cloth import ClothResult, csf
-from roadx_ti.stages.base import CLASS_GROUND, Stage, StageContext, StageOptions, StageResult
+from roadx_ti.kernels.cloth import LATTICE_PERIOD, ClothResult, csf
+from roadx_ti.stages.base import CLASS_GROUND, SURVEY_Z_MIN, Stage, StageContext, StageOptions, StageResult
+
+# In a tile, the cloth starts above the survey's lowest point (as the whole run's does), but never
+# more than this far below the tile's own lowest point: an archive's lowest point says nothing about
+# a mountain tile, and a longer fall costs iterations.
+MAX_START_DROP = 100.0   # m
 
 
 class ClothOptions(StageOptions):
@@ -25,9 +30,10 @@ class ClothOptions(StageOptions):
                                "steep slopes")
 
 
-    align_to_world: bool = Field(True, description="lay the particles on world multiples of "
-                                 "cloth_resolution, so tiled and whole runs share one cloth lattice "
-                                 "(false: the package's layout from the bounding box)")
+    align_to_world: bool = Field(True, description="lay the particles and the simulation's bands on "
+                                 "world multiples of cloth_resolution, and in a tile start the cloth "
+                                 "at the survey's lowest point, so tiled and whole runs share one "
+                                 "cloth (false: the package's layout from the bounding box)")
 
 
 class ClothSmoothOptions(ClothOptions):
@@ -38,17 +44,29 @@ class ClothSmoothOptions(ClothOptions):
 
 
 def world_lattice(origin, resolution: float):
-    """Local coordinates of a particle whose world x, y are multiples of ``resolution`` (float64
-    math on the cloud's origin, so tiles with different origins agree)."""
-    return tuple(float((-float(o)) % resolution) for o in origin[:2])
+    """Local coordinates of a particle whose world x, y are multiples of LATTICE_PERIOD x
+    ``resolution`` (float64 math on the cloud's origin, so tiles with different origins agree on
+    the particles and on the simulation's bands)."""
+    period = resolution * LATTICE_PERIOD
+    return tuple(float((-float(o)) % period) for o in origin[:2])
 
 
-def _run_cloth(options: ClothOptions, cloud: Cloud) -> ClothResult:
+def start_z(cloud: Cloud, ctx: StageContext):
+    """Local z the cloth starts above: the survey's lowest point in a tile (ctx fact set by the
+    tiling), capped at MAX_START_DROP below the cloud's own; None (the cloud's own) otherwise."""
+    survey = ctx.facts.get(SURVEY_Z_MIN)
+    if survey is None or cloud.n == 0:
+        return None
+    return max(float(survey), float(cloud.xyz[:, 2].min()) - MAX_START_DROP)
+
+
+def _run_cloth(options: ClothOptions, cloud: Cloud, ctx: StageContext) -> ClothResult:
     lattice = world_lattice(cloud.origin, options.cloth_resolution) if options.align_to_world else None
     return csf(cloud.xyz, cloth_resolution=options.cloth_resolution,
                rigidness=options.rigidness, time_step=options.time_step,
                iterations=options.iterations, class_threshold=options.class_threshold,
-               slope_smooth=options.slope_smooth, lattice_origin=lattice)
+               slope_smooth=options.slope_smooth, lattice_origin=lattice,
+               start_z=start_z(cloud, ctx) if options.align_to_world else None)
 
 
 def _info(result: ClothResult) -> dict:
@@ -64,7 +82,7 @@ class ClothSmooth(Stage):
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         if cloud.n == 0:
             return StageResult()
-        result = _run_cloth(self.options, cloud)
+        result = _run_cloth(self.options, cloud, ctx)
         ctx.facts["cloth"] = (result, cloud.origin)   # for a DTM export (output.dtm)
         return StageResult(keep=result.ground, info=_info(result))
 
@@ -77,7 +95,7 @@ class ClothGround(Stage):
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         if cloud.n == 0:
             return StageResult()
-        result = _run_cloth(self.options, cloud)
+        result = _run_cloth(self.options, cloud, ctx)
         ctx.facts["cloth"] = (result, cloud.origin)   # for a DTM export (output.dtm)
         keep = ~result.ground
         # aligned with the working points; the pipeline narrows it to the kept ones
