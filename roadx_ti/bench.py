@@ -99,6 +99,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--threads", type=int, default=None, help="CPU threads for Taichi (default: all)")
     p.add_argument("--budget", type=float, default=None, metavar="S",
                    help="seconds of timed repeats per case (default 4, 0.3 with --quick)")
+    p.add_argument("--rounds", type=int, default=None, metavar="R",
+                   help="alternate the CPU (and CUDA) workers with the anchors' worker R times per size and pool "
+                        "their timed repeats, so that load drifting on a shared machine hits both sides alike "
+                        "(default 2; 1 with --quick)")
     p.add_argument("--seed", type=int, default=0, help="synthetic scene seed")
     p.add_argument("--timeout", type=float, default=None, metavar="S",
                    help="give up on a worker after S seconds (its unfinished cases become error rows)")
@@ -144,7 +148,11 @@ def _plan(args) -> dict | str:
         return f"unknown backend(s) {', '.join(bad)}; known: cpu, vulkan, cuda, metal"
     cache = args.cache or ("default" if quick else "fresh")
     budget = args.budget if args.budget is not None else (0.3 if quick else 4.0)
+    rounds = args.rounds if args.rounds is not None else (1 if quick else 2)
+    if rounds < 1:
+        return f"--rounds must be >= 1, got {rounds}"
     return {
+        "rounds": rounds,
         "quick": quick, "sizes": sorted(set(sizes)), "stages": stages, "backends": backends,
         "impls": args.impls, "anchor_sizes": args.anchor_sizes, "cache": cache, "threads": args.threads, "seed": args.seed,
         "budget": budget, "min_repeats": 2 if quick else 3, "max_repeats": 5 if quick else 9,
@@ -162,7 +170,7 @@ def _command_line(args, sizes, stages, backends) -> str:
     anchor_sizes = ",".join(_fmt_points(n) for n in args.anchor_sizes or [])
     for flag, value in (("--impls", ",".join(args.impls or [])), ("--anchor-sizes", anchor_sizes),
                         ("--cache", args.cache),
-                        ("--threads", args.threads), ("--budget", args.budget),
+                        ("--threads", args.threads), ("--budget", args.budget), ("--rounds", args.rounds),
                         ("--seed", args.seed if args.seed else None)):
         if value:
             parts += [flag, str(value)]
@@ -242,18 +250,49 @@ def execute(plan: dict) -> dict:
                 continue
             anchor_jobs = [j for s in plan["stages"] for j in _jobs(s, points, plan["impls"], anchors=True,
                                                                           quick=plan["quick"])]
-            if anchor_jobs:
-                rows += _run_worker(plan, _ANCHORS_WORKER, anchor_jobs, tmp, None)
+            if not anchor_jobs:
+                continue
+            rows += _run_worker(plan, _ANCHORS_WORKER, anchor_jobs, tmp, None)
+            for _ in range(plan["rounds"] - 1):
+                # ABAB: more repeats of the CPU-side workers and of the anchors, alternating
+                for backend in (b for b in plan["backends"] if b in ROUND_BACKENDS and b not in unavailable):
+                    jobs = [j for s in plan["stages"] for j in _jobs(s, points, plan["impls"], anchors=False,
+                                                                            quick=plan["quick"])]
+                    pool_round(rows, _run_worker(plan, backend, jobs, tmp, cache_dir))
+                pool_round(rows, _run_worker(plan, _ANCHORS_WORKER, anchor_jobs, tmp, None))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     add_ratios(rows)
     meta = {"run_id": run_id, "command": plan["command"], "machine": machine_facts(plan["backends"]),
             "sizes": plan["sizes"], "backends": plan["backends"], "stages": plan["stages"],
-            "quick": plan["quick"], "cache": plan["cache"], "budget_s": plan["budget"],
+            "quick": plan["quick"], "cache": plan["cache"], "budget_s": plan["budget"], "rounds": plan["rounds"],
             "seconds": round(time.perf_counter() - t_start, 1), "workers": plan["workers"]}
     for r in rows:
         r["run_id"] = run_id
     return {"meta": meta, "rows": rows}
+
+
+ROUND_BACKENDS = ("cpu", "cuda")   # the workers --rounds repeats beside the anchors
+
+
+def pool_round(rows: list[dict], extra: list[dict]) -> None:
+    """Pool the timed repeats of a later round into the first round's rows (same case); the
+    median and min are recomputed over all repeats, the peak RSS is the larger."""
+    by_key = {_key(r): r for r in rows if r["status"] == "ok" and r["times_s"]}
+    for new in extra:
+        row = by_key.get(_key(new))
+        if row is None or new["status"] != "ok" or not new["times_s"]:
+            continue
+        row["times_s"] = row["times_s"] + new["times_s"]
+        row["repeats"] = len(row["times_s"])
+        row["rounds"] = row.get("rounds", 1) + 1
+        median = statistics.median(row["times_s"])
+        row["median_s"], row["min_s"] = round(median, 6), round(min(row["times_s"]), 6)
+        row["mpts_per_s"] = round(row["points"] / median / 1e6, 4) if median > 0 else None
+        if new.get("peak_rss_mb") and (row.get("peak_rss_mb") or 0) < new["peak_rss_mb"]:
+            row["peak_rss_mb"], row["bytes_per_point"] = new["peak_rss_mb"], new.get("bytes_per_point")
+        if row["impl"] == "roadx_ti" and row.get("first_call_s") is not None:
+            row["compile_s"] = round(max(row["first_call_s"] - median, 0.0), 5)
 
 
 def _key(row) -> tuple:
@@ -267,7 +306,9 @@ def _run_worker(plan, backend, jobs, tmp: Path, cache_dir, *, first_call_only=Fa
     attempt = 0
     while remaining:
         attempt += 1
-        stem = tmp / f"{backend}-{remaining[0]['points']}-{attempt}-{int(first_call_only)}"
+        # a fresh row file per worker (a later round of the same backend and size must not read
+        # the rows of the earlier one)
+        stem = tmp / f"{len(plan['workers'])}-{backend}-{remaining[0]['points']}-{attempt}-{int(first_call_only)}"
         spec = {"backend": backend, "jobs": remaining, "rows_path": str(stem) + ".jsonl",
                 "first_call_only": first_call_only, "threads": plan["threads"], "seed": plan["seed"],
                 "budget": plan["budget"], "min_repeats": plan["min_repeats"],
@@ -718,14 +759,17 @@ def render_markdown(runs: list[dict]) -> str:
              "over the RSS before them per input point. Anchors are timed on the same points and parameters; "
              "Open3D clouds are built outside the timing, roadx_ti's numpy-to-Taichi copies are inside it. "
              f"An anchor whose warm-up call takes over {SLOW_ANCHOR_BUDGETS} repeat budgets is timed by that "
-             "call alone (it compiles nothing).", ""]
+             "call alone (it compiles nothing). With rounds > 1 the CPU-side workers and the anchors' worker "
+             "alternate that many times per size (ABAB) and the medians pool every round's repeats, so a load "
+             "change on the shared machine falls on both sides of a ratio.", ""]
     for run in runs:
         m = run["meta"]
         mach = m["machine"]
         lines += [f"## Run {m['run_id']}", "",
                   f"- command: `{m['command']}`",
                   f"- sizes: {', '.join(map(_fmt_points, m['sizes']))}; backends: {', '.join(m['backends'])}; "
-                  f"offline cache: {m['cache']}; repeat budget {m['budget_s']} s per case; "
+                  f"offline cache: {m['cache']}; repeat budget {m['budget_s']} s per case"
+                  f"{_rounds_text(m)}; "
                   f"wall time {m['seconds']:.0f} s",
                   f"- CPU: {mach.get('cpu_model')}, {mach.get('logical_cores')} logical cores "
                   f"({mach.get('usable_cores')} usable), {mach.get('memory_gb')} GB RAM; {mach.get('os')}",
@@ -741,6 +785,11 @@ def render_markdown(runs: list[dict]) -> str:
     lines += _detail_sections(rows)
     lines += _problem_section(rows)
     return "\n".join(lines).rstrip() + "\n"
+
+
+def _rounds_text(meta) -> str:
+    rounds = meta.get("rounds", 1)
+    return f", {rounds} alternating rounds (CPU-side and anchors)" if rounds > 1 else ""
 
 
 def _device_text(info) -> str:

@@ -72,6 +72,24 @@ def test_quick_run_rows_and_results_page(tmp_path):
     assert "### knn" in again.read_text() and (again.parent / "throughput.png").exists()
 
 
+def test_rounds_alternate_workers_and_pool_their_repeats(tmp_path):
+    run = _run(tmp_path, "--quick", "--sizes", "10k", "--stages", "grid_min", "--backends", "cpu", "--rounds", "2")
+    order = [(w["backend"], w["first_call_only"]) for w in run["meta"]["workers"]]
+    assert order == [("cpu", False), ("anchors", False), ("cpu", False), ("anchors", False)]
+    assert run["meta"]["rounds"] == 2 and "--rounds 2" in run["meta"]["command"]
+    for r in run["rows"]:
+        assert r["rounds"] == 2 and r["repeats"] == len(r["times_s"]) >= 2
+        assert r["median_s"] == pytest.approx(sorted(r["times_s"])[len(r["times_s"]) // 2], rel=0.5)
+    mine, numpy_row = sorted(run["rows"], key=lambda r: r["impl"] != "roadx_ti")
+    assert mine["ratio"]["numpy"] == pytest.approx(numpy_row["median_s"] / mine["median_s"], rel=1e-2)
+    # the existing separate section of a results page survives a re-render
+    page = tmp_path / "RESULTS.md"
+    page.write_text(page.read_text() + "\n## Measured separately\n\nby hand\n")
+    assert bench.main(_args("--render", *map(str, (tmp_path / "out").glob("bench-*.json")),
+                            "--results", str(page))) == 0
+    assert page.read_text().endswith("## Measured separately\n\nby hand\n") and "### grid_min" in page.read_text()
+
+
 def test_missing_failing_and_crashing_cases_are_reported(tmp_path, monkeypatch):
     cases = tmp_path / "cases"
     cases.mkdir()
