@@ -253,11 +253,14 @@ def execute(plan: dict) -> dict:
             if not anchor_jobs:
                 continue
             rows += _run_worker(plan, _ANCHORS_WORKER, anchor_jobs, tmp, None)
+            compared = {(j["stage"], j["variant"]) for j in anchor_jobs}
             for _ in range(plan["rounds"] - 1):
-                # ABAB: more repeats of the CPU-side workers and of the anchors, alternating
+                # ABAB: more repeats of the CPU-side workers and of the anchors, alternating (only
+                # the cases that have an anchor: a ratio is what the rounds protect)
                 for backend in (b for b in plan["backends"] if b in ROUND_BACKENDS and b not in unavailable):
                     jobs = [j for s in plan["stages"] for j in _jobs(s, points, plan["impls"], anchors=False,
-                                                                            quick=plan["quick"])]
+                                                                            quick=plan["quick"])
+                            if (j["stage"], j["variant"]) in compared]
                     pool_round(rows, _run_worker(plan, backend, jobs, tmp, cache_dir))
                 pool_round(rows, _run_worker(plan, _ANCHORS_WORKER, anchor_jobs, tmp, None))
     finally:
