@@ -185,6 +185,17 @@ def test_a_tile_with_the_survey_lattice_and_start_keeps_the_whole_cloth():
     assert survey_start < 0.1 and survey_start < own_start / 2, (survey_start, own_start)
 
 
+def test_stage_start_height_from_the_survey_is_capped():
+    from roadx_ti.stages.base import SURVEY_Z_MIN
+    from roadx_ti.stages.cloth import MAX_START_DROP, start_z
+    xyz, _ = terrain(100, seed=3)
+    cloud = Cloud(xyz=xyz + np.float32(500.0), origin=np.zeros(3))
+    lowest = float(cloud.xyz[:, 2].min())
+    assert start_z(cloud, StageContext()) is None                       # not a tile: its own
+    assert start_z(cloud, StageContext(facts={SURVEY_Z_MIN: 450.0})) == 450.0
+    assert start_z(cloud, StageContext(facts={SURVEY_Z_MIN: -3000.0})) == lowest - MAX_START_DROP
+
+
 def test_ndarray_input_matches_numpy_input(ti_arch):
     from roadx_ti.kernels.common import as_ndarray
     xyz, _ = terrain(3000, seed=17, extent=20.0, boxes=1)
