@@ -32,6 +32,25 @@ def ti_arch(request):
     yield arch
 
 
+def switch_backend(name: str) -> None:
+    """Make ``name`` the runtime of this test process (tests only: pipelines never re-initialise)."""
+    if backend.is_initialized() and backend.current_arch() != name:
+        backend.reset()
+    backend.init(name)
+
+
+@pytest.fixture(autouse=True)
+def _runtime_per_test(request):
+    """A test on ti_arch runs on that backend; any other test that finds a runtime started runs
+    on the CPU (pipelines, tiles and stages run in this process: lavapipe left behind by a Vulkan
+    test would make them many times slower, and their backend would depend on the test order)."""
+    if "ti_arch" in request.fixturenames:
+        switch_backend(request.getfixturevalue("ti_arch"))
+    elif backend.is_initialized() and backend.current_arch() != "cpu":
+        switch_backend("cpu")
+    yield
+
+
 @pytest.fixture(scope="session")
 def shared_data():
     if not SHARED_DATA.is_dir():

@@ -76,10 +76,6 @@ def shared_files(folder):
 
 @pytest.mark.parametrize("resolution", [0.5, 2.0])
 def test_agrees_with_package_on_shared_data(shared_data, resolution):
-    from roadx_ti import backend
-    if backend.is_initialized() and backend.current_arch() != "cpu":
-        backend.reset()
-    backend.init("cpu")
     for path in shared_files(shared_data):
         xyz = read_local(path)
         ours = cloth.csf(xyz, cloth_resolution=resolution, rigidness=3, class_threshold=0.5)

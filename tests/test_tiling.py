@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from roadx_ti import config, io, pipelines, synthetic, tiling
+from conftest import switch_backend
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -73,6 +74,7 @@ def test_default_buffer_follows_the_stages_reach():
 def six_runs(shared_data, tmp_path_factory):
     """Untiled and 40 m tiled ground runs over the six adjacent IGN tiles (a folder input); the
     40 m grid does not follow the 50 m files, so tiles read several files."""
+    switch_backend("cpu")      # module scope: set up before conftest's per-test switch
     folder = shared_data / "tiles"
     out = tmp_path_factory.mktemp("six")
     cfg = ground_cfg()
