@@ -312,7 +312,7 @@ def _large_buffers_back_to_os() -> None:
     """Serve blocks above MMAP_THRESHOLD from mmap, so that a tile's large arrays go back to the OS
     when the tile ends. glibc's adaptive threshold otherwise grows past the sizes freed, keeps
     later ones in the heap, and the next tiles fragment it: on the 16 M benchmark (2 M-point
-    tiles) the peak RSS went from 675 to 518 MB, the untiled run's stayed 1745 MB. glibc only;
+    tiles) the peak RSS went from 675 to about 520 MB, the untiled run's stayed 1745 MB. glibc only;
     process-wide (also for a host program that runs tiles in-process), harmless elsewhere."""
     try:
         ctypes.CDLL(None).mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)

@@ -41,13 +41,10 @@ def switch_backend(name: str) -> None:
 
 @pytest.fixture(autouse=True)
 def _runtime_per_test(request):
-    """A test on ti_arch runs on that backend; any other test that finds a runtime started runs
-    on the CPU (pipelines, tiles and stages run in this process: lavapipe left behind by a Vulkan
-    test would make them many times slower, and their backend would depend on the test order)."""
-    if "ti_arch" in request.fixturenames:
-        switch_backend(request.getfixturevalue("ti_arch"))
-    elif backend.is_initialized() and backend.current_arch() != "cpu":
-        switch_backend("cpu")
+    """A test on ti_arch runs on that backend; any other test runs on the CPU (pipelines, tiles
+    and stages run in this process: lavapipe left behind by a Vulkan test would make them many
+    times slower, and their backend would depend on the test order)."""
+    switch_backend(request.getfixturevalue("ti_arch") if "ti_arch" in request.fixturenames else "cpu")
     yield
 
 
