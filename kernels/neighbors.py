@@ -123,6 +123,21 @@ def _distance(j: ti.i32, q: ti.math.vec3, sxyz: ti.template()) -> ti.f32:
 
 
 @ti.func
+def _insert_at(best_key: ti.template(), best_idx: ti.template(), pos: ti.i32, key: ti.i32, idx: ti.i32):
+    """Put (key, idx) at slot ``pos`` or before it, shifting larger pairs of slots < pos one up
+    (slot ``pos`` itself is free or dropped): one insertion-sort step."""
+    while pos > 0:
+        if _pair_less(key, idx, best_key[pos - 1], best_idx[pos - 1]):
+            best_key[pos] = best_key[pos - 1]
+            best_idx[pos] = best_idx[pos - 1]
+            pos -= 1
+        else:
+            break
+    best_key[pos] = key
+    best_idx[pos] = idx
+
+
+@ti.func
 def _offer_best(best_key: ti.template(), best_idx: ti.template(), size: ti.i32, k: ti.i32,
                 key: ti.i32, idx: ti.i32) -> ti.i32:
     """Offer (key, idx) to the ascending list of the k smallest pairs so far (insertion from
@@ -134,15 +149,7 @@ def _offer_best(best_key: ti.template(), best_idx: ti.template(), size: ti.i32, 
     elif _pair_less(key, idx, best_key[k - 1], best_idx[k - 1]):
         pos = k - 1
     if pos >= 0:
-        while pos > 0:
-            if _pair_less(key, idx, best_key[pos - 1], best_idx[pos - 1]):
-                best_key[pos] = best_key[pos - 1]
-                best_idx[pos] = best_idx[pos - 1]
-                pos -= 1
-            else:
-                break
-        best_key[pos] = key
-        best_idx[pos] = idx
+        _insert_at(best_key, best_idx, pos, key, idx)
     return size
 
 
@@ -158,18 +165,7 @@ def _emit_best(best_key: ti.template(), best_idx: ti.template(), size: ti.i32, k
     for r in range(k):
         best_key[r] = ti.bit_cast(ti.sqrt(ti.bit_cast(best_key[r], ti.f32)), ti.i32)
     for r in range(1, k):
-        key = best_key[r]
-        idx = best_idx[r]
-        pos = r
-        while pos > 0:
-            if _pair_less(key, idx, best_key[pos - 1], best_idx[pos - 1]):
-                best_key[pos] = best_key[pos - 1]
-                best_idx[pos] = best_idx[pos - 1]
-                pos -= 1
-            else:
-                break
-        best_key[pos] = key
-        best_idx[pos] = idx
+        _insert_at(best_key, best_idx, r, best_key[r], best_idx[r])
     dist_sum = 0.0
     for r in range(k):
         dist = ti.bit_cast(best_key[r], ti.f32)

@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import laspy
 import numpy as np
+import pytest
 
 
 def write_copc(src_path, dst_path) -> None:
-    copc = __import__("pytest").importorskip("copclib", reason="copclib writes the COPC fixtures")
+    copc = pytest.importorskip("copclib", reason="copclib writes the COPC fixtures")
     src = laspy.read(src_path)
     h = src.header
     if h.point_format.id not in (6, 7, 8):
