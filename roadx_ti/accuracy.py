@@ -34,6 +34,28 @@ REFERENCE_ROWS = {
 }
 
 
+# Facts about a dataset or a result that the numbers alone do not show (measured; see the
+# session notes of the commit that wrote them).
+NOTES = {
+    "road": [
+        "Sensitivity of colour growing to its point threshold Q_t (`color_growing.point_threshold`, "
+        "default 10), measured 2026-11-22 on the scenes above: synthetic 9.5 -> seed 0 E2 4.08 %; "
+        "10.6 -> seed 1 E2 15.60 % (a sidewalk region passes the road-like test); AHN3 (intensity) "
+        "12 -> E1 20.2 %, 12.5-13.3 -> E1 8.8 % / E2 19.6 %, 14-15 -> E2 21.5-22.5 %. Growing by a "
+        "point-to-point threshold flips between leaking and splitting within +-10 % of it: check "
+        "the PNGs when changing it or the colour source.",
+    ],
+    "roof": [
+        "IGN ign_870000_6618000: a 15 x 14 m gabled building south-west of the centre (2,414 points "
+        "at 6-9 m, 92 % single returns, grey roof) carries class 1 in the truth; the pipeline finds "
+        "it, and it counts as 2,414 false positives of the 3,173 above.",
+        "The six IGN tiles have no colour: roof growing uses their LiDAR returns as the vegetation "
+        "cue (`roof_growing.use_returns`); with it off, kappa was 0.829 / 0.765 / 0.949 / 0.732 / "
+        "0.838 / 0.810 on them (2026-11-22).",
+    ],
+}
+
+
 def datasets(task: str, points: int, seeds=(0, 1, 2)):
     """(name, loader, truth classes, config file) per dataset of the task."""
     from roadx_ti import io, synthetic
@@ -50,6 +72,10 @@ def datasets(task: str, points: int, seeds=(0, 1, 2)):
                      lambda: io.read(SHARED_DATA / "roof" / "ign_870000_6618000.las"), [6], "roof_als.yaml"))
         rows.append(("IGN ign_874000_6617000_reviewed",
                      lambda: io.read(SHARED_DATA / "roof" / "ign_874000_6617000_reviewed.laz"), [19], "roof_als.yaml"))
+        # the six adjacent IGN tiles: real roofs without colour (returns are the vegetation cue)
+        for path in sorted((SHARED_DATA / "tiles").glob("*.laz")):
+            rows.append((f"IGN tile {path.stem.split('_LA93')[0]} (no colour)",
+                         lambda p=path: io.read(p), [6], "roof_als.yaml"))
         for seed in seeds:
             rows.append((f"synthetic als-roof {points // 1000}k seed {seed}",
                          lambda s=seed: synthetic.generate("als-roof", points, s), [6], "roof_als.yaml"))
@@ -75,13 +101,15 @@ def evaluate(task: str, out: Path, points: int) -> list[dict]:
         truth = metrics.class_mask(cloud.classification, truth_classes)
         t0 = time.perf_counter()
         result = pipelines.run(cloud, pipelines.build_stages(cfg.stage_list()),
-                               ctx=StageContext(seed=cfg.seed, log=log), truth=truth)
+                               ctx=StageContext(seed=cfg.seed, log=log), truth=truth,
+                               target_class=target)
         seconds = time.perf_counter() - t0
         predicted = result.classification == target
         row = {"dataset": name, "config": cfg_name, "points": cloud.n, "truth_classes": truth_classes,
                "seconds": round(seconds, 2), **metrics.scores(truth, predicted),
                "stages": [{k: s.get(k) for k in ("stage", "points_in", "points_out", "removed_target",
-                                                  "removed_other", "seconds")} for s in result.stages]}
+                                                  "removed_other", "unlabelled_target", "labelled_other",
+                                                  "seconds")} for s in result.stages]}
         results.append(row)
         slug = "".join(c if c.isalnum() else "_" for c in name).strip("_")[:60]
         report.top_view_png(out / f"{task}_{slug}.png", cloud.xyz[:, :2], result.classification,
@@ -93,6 +121,13 @@ def evaluate(task: str, out: Path, points: int) -> list[dict]:
 
 def _pct(v):
     return f"{100 * v:.2f} %" if isinstance(v, float) else str(v)
+
+
+def _stage_counts(s: dict) -> str:
+    text = f"{s['stage']} {s.get('removed_target', 0) or 0:,} / {s.get('removed_other', 0) or 0:,}"
+    if s.get("unlabelled_target") is not None:
+        text += f" (missed {s['unlabelled_target']:,} / wrongly labelled {s['labelled_other']:,})"
+    return text
 
 
 def render(task_results: dict, command: str) -> str:
@@ -110,11 +145,14 @@ def render(task_results: dict, command: str) -> str:
                          f"{_pct(ref.get('total', ''))} | {ref.get('kappa', '')} | |")
         lines += ["", "Per stage: target / non-target points each stage removed (a removed point is "
                   "labelled non-target; downsampling only skips points, which take their nearest "
-                  "processed point's label).", ""]
+                  "processed point's label); for a labelling stage also, in brackets, the target "
+                  "points of its input it left without the target class and the non-target points "
+                  "it gave that class (for a segmenting stage: outside / inside every segment; "
+                  "counts over processed points, before label transfer).", ""]
         for r in rows:
-            lines += [f"**{r['dataset']}**: " + ", ".join(
-                f"{s['stage']} {s.get('removed_target', 0) or 0:,} / {s.get('removed_other', 0) or 0:,}"
-                for s in r["stages"]), ""]
+            lines += [f"**{r['dataset']}**: " + ", ".join(_stage_counts(s) for s in r["stages"]), ""]
+        if NOTES.get(task):
+            lines += ["Notes:", ""] + [f"- {note}" for note in NOTES[task]] + [""]
     return "\n".join(lines) + "\n"
 
 

@@ -20,6 +20,8 @@ class Cloud:
     color_depth: int = 0                    # 8 or 16 when rgb is set, 0 without colour
     intensity: np.ndarray | None = None     # (n,) uint16
     classification: np.ndarray | None = None  # (n,) uint8: input classes (truth in tests)
+    # (n, 2) uint8: LiDAR return number and number of returns of the point's pulse (1-based)
+    returns: np.ndarray | None = None
     attributes: dict = field(default_factory=dict)  # other per-point arrays (non-LAS formats)
     las: object | None = None               # laspy.LasData this cloud came from, if any
     source: str = ""                        # path or description, for messages
@@ -30,7 +32,7 @@ class Cloud:
         if self.xyz.ndim != 2 or self.xyz.shape[1] != 3:
             raise ValueError("xyz must have shape (n, 3)")
         n = len(self.xyz)
-        for name in ("rgb", "intensity", "classification"):
+        for name in ("rgb", "intensity", "classification", "returns"):
             a = getattr(self, name)
             if a is not None and len(a) != n:
                 raise ValueError(f"{name} has {len(a)} rows for {n} points")
@@ -57,6 +59,17 @@ class Cloud:
             rgb /= 257.0
         return rgb
 
+    def penetrated(self) -> np.ndarray | None:
+        """bool (n,): the point is an earlier return of a pulse that went on (return number below
+        the number of returns): foliage, hedges and roof edges, rarely roof interiors. None
+        without return information (or when every point says 1 of 1 or 0 of 0)."""
+        if self.returns is None:
+            return None
+        number, count = self.returns[:, 0], self.returns[:, 1]
+        if not (count > 1).any():
+            return None
+        return number < count
+
     def world_xyz(self) -> np.ndarray:
         """float64 world coordinates (exact for LAS input: taken from the scaled integers)."""
         if self.las is not None:
@@ -70,7 +83,7 @@ class Cloud:
         def pick(a):
             return None if a is None else a[index]
         return replace(self, xyz=self.xyz[index], rgb=pick(self.rgb), intensity=pick(self.intensity),
-                       classification=pick(self.classification),
+                       classification=pick(self.classification), returns=pick(self.returns),
                        attributes={k: v[index] for k, v in self.attributes.items()}, las=None)
 
     @classmethod

@@ -50,9 +50,12 @@ def default_stage_specs(pipeline: str):
 
 
 def run(cloud: Cloud, stages, *, ctx: StageContext | None = None, truth: np.ndarray | None = None,
-        default_class: int = CLASS_OTHER, progress=None) -> PipelineResult:
+        default_class: int = CLASS_OTHER, progress=None, target_class: int | None = None) -> PipelineResult:
     """Run ``stages`` over ``cloud``. ``truth`` (bool per point, optional) adds per-stage counts of
-    target and non-target points removed, for accuracy reports."""
+    target and non-target points removed, for accuracy reports; with ``target_class`` also, for a
+    labelling stage, how many target points of its working set it leaves without that class
+    (``unlabelled_target``) and how many others it gives it (``labelled_other``); for a stage that
+    only segments, the same counts with "in a segment" for "given the class"."""
     ctx = ctx or StageContext()
     n = cloud.n
     classification = np.full(n, default_class, np.uint8)
@@ -75,8 +78,20 @@ def run(cloud: Cloud, stages, *, ctx: StageContext | None = None, truth: np.ndar
                "seconds": round(seconds, 4), "info": result.info}
         if result.labels is not None:
             classification[working] = result.labels
+            if truth is not None and target_class is not None:
+                as_target = np.asarray(result.labels) == target_class
+                working_truth = truth[working]
+                row["unlabelled_target"] = int((working_truth & ~as_target).sum())
+                row["labelled_other"] = int((~working_truth & as_target).sum())
         if result.segment_id is not None:
             segment_id[working] = result.segment_id
+            if result.labels is None and truth is not None and target_class is not None:
+                # a segmenting stage (roof growing): target points left outside every segment,
+                # non-target points inside one
+                in_segment = np.asarray(result.segment_id) >= 0
+                working_truth = truth[working]
+                row["unlabelled_target"] = int((working_truth & ~in_segment).sum())
+                row["labelled_other"] = int((~working_truth & in_segment).sum())
         for key, values in result.point_data.items():
             ctx.point_data[key] = values
         if result.keep is not None:

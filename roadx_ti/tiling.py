@@ -297,7 +297,7 @@ def _concat(clouds: list[Cloud], origin: np.ndarray) -> Cloud:
     return Cloud(xyz=np.concatenate([c.xyz for c in clouds]), origin=origin, rgb=rgb,
                  color_depth=max(c.color_depth for c in clouds) if rgb is not None else 0,
                  intensity=pick("intensity"), classification=pick("classification"),
-                 source="+".join(c.source for c in clouds))
+                 returns=pick("returns"), source="+".join(c.source for c in clouds))
 
 
 def _inside(x, y, box) -> np.ndarray:

@@ -129,6 +129,14 @@ def test_real_las_cloud_fields_match_laspy(shared_data):
         assert np.abs(cloud.xyz.astype(np.float64) + cloud.origin - world).max() < 1e-4
         assert np.array_equal(cloud.classification, np.asarray(ref.classification))
         assert np.array_equal(cloud.intensity, np.asarray(ref.intensity))
+        assert np.array_equal(cloud.returns, np.column_stack([ref.return_number, ref.number_of_returns]))
+        later = np.asarray(ref.return_number) < np.asarray(ref.number_of_returns)
+        if (np.asarray(ref.number_of_returns) > 1).any():
+            assert np.array_equal(cloud.penetrated(), later)
+        else:
+            assert cloud.penetrated() is None
+        part = np.flatnonzero(np.arange(cloud.n) % 3 == 0)
+        assert np.array_equal(cloud.subset(part).returns, cloud.returns[part])
         if "red" in ref.point_format.dimension_names and np.any(ref.red):
             assert cloud.color_depth == 16
             assert np.array_equal(cloud.rgb, np.column_stack([ref.red, ref.green, ref.blue]))
@@ -347,6 +355,8 @@ def test_las_to_ply_keeps_extra_dims(shared_data, tmp_path):
     assert np.array_equal(back.xyz.astype(np.float64) + back.origin, cloud.xyz.astype(np.float64) + cloud.origin)
     assert np.array_equal(back.attributes["bgt_road"], np.asarray(cloud.las.bgt_road))
     assert np.array_equal(back.classification, cloud.classification)
+    # LiDAR returns travel as return_number / number_of_returns columns and come back as returns
+    assert np.array_equal(back.returns, cloud.returns)
 
 
 def test_ply_and_pcd_written_by_open3d(tmp_path):

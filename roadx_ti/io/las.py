@@ -150,6 +150,8 @@ def read_las(path, bounds=None, origin=None) -> Cloud:
     return Cloud(xyz=(world - origin).astype(np.float32), origin=origin, rgb=rgb, color_depth=depth,
                  intensity=np.asarray(las.intensity, dtype=np.uint16),
                  classification=np.asarray(las.classification, dtype=np.uint8),
+                 returns=np.column_stack([np.asarray(las.return_number), np.asarray(las.number_of_returns)]
+                                         ).astype(np.uint8),
                  las=las, source=str(path))
 
 

@@ -55,7 +55,7 @@ def world_cloud(path, world: np.ndarray, origin, columns: dict) -> Cloud:
     classification = _take_integral(columns, lower, CLASS_NAMES, np.uint8, taken)
     attributes = {k: np.asarray(v) for k, v in columns.items() if k not in taken}
     kw = dict(rgb=rgb, color_depth=depth or 0, intensity=intensity, classification=classification,
-              attributes=attributes, source=str(path))
+              returns=_returns(attributes), attributes=attributes, source=str(path))
     return Cloud.from_world(world, origin=origin, **kw)
 
 
@@ -102,6 +102,9 @@ def _columns(cloud: Cloud, classification, extra_dims, subset):
         if classes.size and (classes.min() < 0 or classes.max() > 255):
             raise ValueError("classification values must be 0-255")
         cols["classification"] = classes.astype(np.uint8)
+    if cloud.returns is not None and not {"return_number", "number_of_returns"} & {k.lower() for k in cloud.attributes}:
+        returns = pick(cloud.returns)
+        cols["return_number"], cols["number_of_returns"] = returns[:, 0].copy(), returns[:, 1].copy()
     extras = dict(cloud.attributes)
     if cloud.las is not None:
         for name in cloud.las.point_format.extra_dimension_names:
@@ -117,6 +120,16 @@ def _columns(cloud: Cloud, classification, extra_dims, subset):
         a = per_point(name, values, n, index)
         cols[name] = a.astype(np.uint8) if a.dtype == bool else a
     return world, cols
+
+
+def _returns(attributes: dict) -> np.ndarray | None:
+    """(n, 2) uint8 return number / number of returns from columns of those names (they stay
+    attributes too, written back as they came), else None."""
+    lower = {k.lower(): k for k in attributes}
+    if "return_number" not in lower or "number_of_returns" not in lower:
+        return None
+    return np.column_stack([np.asarray(attributes[lower["return_number"]]),
+                            np.asarray(attributes[lower["number_of_returns"]])]).clip(0, 255).astype(np.uint8)
 
 
 def _coord_decimals(cloud: Cloud) -> int:
@@ -362,7 +375,7 @@ def read_npz(path, origin=None) -> Cloud:
                  color_depth=depth if rgb is not None else 0,
                  intensity=None if intensity is None else intensity.astype(np.uint16),
                  classification=None if classes is None else classes.astype(np.uint8),
-                 attributes=attributes, source=str(path))
+                 returns=_returns(attributes), attributes=attributes, source=str(path))
 
 
 def write_npz(path, cloud: Cloud, classification=None, extra_dims=None, subset=None) -> None:

@@ -25,7 +25,8 @@ Needs roof_growing before it (point_data 'roof_segment') and, for the height tes
 - footprint completion (attach_footprint, kernels/seeds.attach_to_footprints): walls below a
   kept roof's edge, chimneys and roof units standing on it and roof points under overhanging
   foliage join it; off the roof surface only points that are not vegetation-coloured join
-  (point_data 'vegetation' from roof_growing; without colour every point may).
+  (point_data 'vegetation' from roof_growing: colour or foliage returns; without either every
+  point may).
 Labels: 6 (building) for points of kept segments, 1 (other) for the rest; segment_id compact over
 the kept segments, -1 elsewhere.
 """

@@ -8,8 +8,13 @@ whose 8-bit RGB distance is below color_max (a point with curvature below color_
 counts as not vegetation-coloured for this rule: planar roof under overhanging foliage); growth
 passes only through seeds and points with curvature below expand_curvature_max; connected pieces holding a seed are roof segments, other
 points touching them by a growth edge join as leaves. Without colour the colour rule is off (a
-warning says so). Writes point_data 'roof_segment' (int32, compact ids, -1 = none) and, with the
-colour rule on, 'vegetation' (uint8, COM > com_threshold) for roof_filter's footprint completion.
+warning says so). LiDAR returns (when the input has them): an earlier return of a multi-return
+pulse whose curvature is not below returns_exempt_curvature (foliage: the laser went on through
+it; roof interiors return once, roof edges are planar) joins no growth edge; this is the
+vegetation cue of inputs without colour (on the six IGN Lidar HD tiles without colour it raised
+kappa from 0.73-0.95 to 0.86-0.95, benchmarks/accuracy). Writes point_data 'roof_segment'
+(int32, compact ids, -1 = none) and, with the colour rule or returns on, 'vegetation' (uint8:
+COM > com_threshold, or such a foliage return) for roof_filter's annex and footprint tests.
 """
 from __future__ import annotations
 
@@ -36,6 +41,12 @@ class RoofGrowingOptions(StageOptions):
         "colour, foliage itself is rough; null = no exemption")
     color_max: float = Field(30.0, gt=0, description="a vegetation-coloured point joins only a "
                              "neighbour closer than this in RGB (8-bit units)")
+    use_returns: bool = Field(True, description="when the cloud has LiDAR return numbers: an "
+                              "earlier return of a multi-return pulse (the laser went on through: "
+                              "foliage) that is not planar (curvature at or above "
+                              "returns_exempt_curvature) joins no roof")
+    returns_exempt_curvature: float = Field(0.005, gt=0, description="points with curvature below this "
+                                            "(unitless) are exempt from the returns rule (roof edges)")
 
 
 class RoofGrowing(Stage):
@@ -64,14 +75,24 @@ class RoofGrowing(Stage):
             vegetation_points = int(np.count_nonzero(vegetation))
             colour = dict(rgb=rgb, vegetation=vegetation, color_max=o.color_max)
         elif o.use_color:
-            ctx.log.warning("roof_growing: the input has no colour; the vegetation colour rule is off")
+            cue = ("LiDAR returns are the vegetation cue" if o.use_returns and cloud.penetrated() is not None
+                   else "no vegetation cue")
+            ctx.log.warning("roof_growing: the input has no colour; the vegetation colour rule is off (%s)", cue)
         edge_colour = dict(colour)
         if colour and o.color_exempt_curvature is not None:
             # a planar point is roof surface under foliage (orthophoto colour), not foliage itself
             edge_colour["vegetation"] = ((np.asarray(colour["vegetation"]) != 0) &
                                          (np.asarray(ctx.point_data["curvature"]) >= o.color_exempt_curvature)
                                          ).astype(np.uint8)
-        edge_ok = roof_growth_edges(knn, ctx.point_data["normal"], angle_max_deg=o.angle_max_deg, **edge_colour)
+        active = None
+        foliage_returns = None
+        penetrated = cloud.penetrated() if o.use_returns else None
+        if penetrated is not None:
+            rough = np.asarray(ctx.point_data["curvature"]) >= o.returns_exempt_curvature
+            foliage_returns = penetrated & rough
+            active = (~foliage_returns).astype(np.uint8)
+        edge_ok = roof_growth_edges(knn, ctx.point_data["normal"], angle_max_deg=o.angle_max_deg,
+                                    active=active, **edge_colour)
         segment = grow_roof_segments(knn, edge_ok, ctx.point_data["roof_seed"],
                                      curvature=ctx.point_data["curvature"],
                                      expand_curvature_max=o.expand_curvature_max)
@@ -83,4 +104,9 @@ class RoofGrowing(Stage):
         point_data = {"roof_segment": segment}
         if colour:
             point_data["vegetation"] = np.asarray(colour["vegetation"], np.uint8)
+        if foliage_returns is not None:
+            # roof_filter's annex and footprint tests treat these like vegetation-coloured points
+            point_data["vegetation"] = (point_data.get("vegetation", np.zeros(n, np.uint8)) |
+                                        foliage_returns).astype(np.uint8)
+            info["foliage_returns"] = int(np.count_nonzero(foliage_returns))
         return StageResult(point_data=point_data, segment_id=segment, info=info)
