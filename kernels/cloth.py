@@ -42,7 +42,8 @@ import math
 import numpy as np
 import taichi as ti
 
-from .common import as_ndarray, f32_order_key, f32_from_order_key, is_ndarray, length, ndarray, to_numpy
+from .common import (as_ndarray, f32_order_key, f32_from_order_key, host_memory_backend,
+                     kernel_array, length, ndarray, to_numpy)
 
 DAMPING = 0.01
 GRAVITY = 0.2
@@ -250,7 +251,7 @@ def _threads_per_band_block():
     """Loop block size of the loops over bands, evaluated when a kernel compiles: 1 on the CPU,
     whose default blocks would give several bands to one thread; the default elsewhere
     (Vulkan refuses blocks of one)."""
-    return 1 if _host_memory_backend() else None
+    return 1 if host_memory_backend() else None
 
 
 @ti.func
@@ -622,31 +623,18 @@ def _ground_mask(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
         ground[p] = ti.u8(1) if ti.abs(above) < threshold else ti.u8(0)
 
 
-def _host_memory_backend() -> bool:
-    """True when kernels run on the host CPU: numpy arrays are then passed to them in place."""
-    return ti.lang.impl.current_cfg().arch in (ti.x64, ti.arm64)
-
-
 def _serial_simulation(cells: int) -> bool:
     """On the CPU, run all iterations in one thread and launch (_simulate_serial) for small
     cloths, and for every cloth when there are at most two threads: banded parallelism then
     saves less than its five synchronised tasks per iteration cost (measured on 2 cores)."""
-    if not _host_memory_backend():
+    if not host_memory_backend():
         return False
     return cells <= SERIAL_CELLS or ti.lang.impl.current_cfg().cpu_max_num_threads <= 2
 
 
-def _kernel_points(xyz):
-    """The (n, 3) float32 points as a kernel argument: ndarrays as they are; numpy arrays in
-    place on the CPU backend (no copy of millions of points), else copied into an ndarray."""
-    if is_ndarray(xyz) or not _host_memory_backend():
-        return as_ndarray(xyz, np.float32)
-    return np.ascontiguousarray(xyz, dtype=np.float32)
-
-
 def _point_output(dtype, n):
     """Per-point output array: numpy on the CPU backend (written in place), else an ndarray."""
-    return np.empty(n, dtype) if _host_memory_backend() else ndarray(dtype, (n,))
+    return np.empty(n, dtype) if host_memory_backend() else ndarray(dtype, (n,))
 
 
 # ---------------------------------------------------------------- public API
@@ -668,7 +656,7 @@ class ClothResult:
         """z minus the bilinear cloth height under each point (float32 (n,))."""
         rows, cols = self.cloth_z.shape
         pos = as_ndarray(-self.cloth_z.reshape(-1), np.float32)
-        points = _kernel_points(xyz)
+        points = kernel_array(xyz, np.float32)
         out = _point_output(np.float32, length(points))
         if length(points):
             _height_above(points, pos, self.x0, self.y0, self.resolution, cols, rows, out)
@@ -735,7 +723,7 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
         raise ValueError("time_step must be > 0")
     if int(iterations) < 1:
         raise ValueError("iterations must be >= 1")
-    points = _kernel_points(xyz)
+    points = kernel_array(xyz, np.float32)
     n = length(points)
     if n == 0:
         return ClothResult(np.zeros(0, bool), np.zeros((0, 0), np.float32), 0.0, 0.0,

@@ -1,7 +1,8 @@
 """Shared helpers for kernel modules: array conversion at the API boundary and ti.funcs.
 
 Public kernel wrappers accept numpy arrays or Taichi ndarrays owned by the caller. Numpy inputs
-are copied into ndarrays once, results come back as numpy; ndarray inputs stay on the device and
+are read in place on the CPU backend and copied into ndarrays once elsewhere (``kernel_array``),
+results come back as numpy; ndarray inputs stay on the device and
 results are returned as ndarrays, so an embedding pipeline never round-trips through the host.
 """
 
@@ -43,6 +44,24 @@ def as_ndarray(a, dtype=None):
     out = ndarray(arr.dtype, arr.shape)
     out.from_numpy(arr)
     return out
+
+
+def host_memory_backend() -> bool:
+    """True when kernels run on the host CPU (x64, arm64), where numpy arrays are kernel
+    arguments in place: Taichi passes their pointer, no copy."""
+    return ti.lang.impl.current_cfg().arch in (ti.x64, ti.arm64)
+
+
+def kernel_array(a, dtype=None):
+    """An input array as a kernel argument: ndarrays as they are; numpy arrays in place on the
+    CPU backend (converted only when not contiguous or not of ``dtype``), else copied into an
+    ndarray. For read-only inputs: a wrapper must not hand the result back as its own output."""
+    if is_ndarray(a) or not host_memory_backend():
+        return as_ndarray(a, dtype)
+    arr = np.ascontiguousarray(a, dtype=dtype)
+    if arr.size >= INT32_MAX:
+        raise ValueError(f"array of {arr.size} elements exceeds Taichi's 32-bit indexing; tile the input")
+    return arr
 
 
 def to_numpy(a):

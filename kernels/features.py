@@ -10,7 +10,7 @@ neighbourhoods, where closed-form cubic solutions lose the small eigenvalue.
 import numpy as np
 import taichi as ti
 
-from .common import as_ndarray, is_ndarray, length, ndarray
+from .common import is_ndarray, kernel_array, length, ndarray
 
 _JACOBI_SWEEPS = 8
 
@@ -119,8 +119,8 @@ def covariance_features(xyz, knn_indices) -> dict:
     'eigenvalues' (n, 3) ascending; 'curvature' (n,) l0 / (l0 + l1 + l2), 0 when the sum is 0;
     'max_distance' (n,) distance to the farthest of the k neighbours;
     'extent' (n, 3) per-axis max - min of the neighbourhood coordinates."""
-    pts = as_ndarray(xyz, np.float32)
-    nbr = as_ndarray(knn_indices, np.int32)
+    pts = kernel_array(xyz, np.float32)
+    nbr = kernel_array(knn_indices, np.int32)
     n = length(pts)
     if len(nbr.shape) != 2 or int(nbr.shape[0]) != n:
         raise ValueError(f"knn_indices must have shape (n, k) with n={n}, got {tuple(nbr.shape)}")

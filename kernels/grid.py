@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import taichi as ti
 
-from .common import INT32_MAX, as_ndarray, f32_order_key, is_ndarray, length, ndarray
+from .common import INT32_MAX, f32_order_key, is_ndarray, kernel_array, length, ndarray
 from .scan import exclusive_scan_into
 
 # Large primes of the classic spatial hash (Teschner et al. 2003).
@@ -253,7 +253,7 @@ def build_grid_into(xyz, cell_size, points_per_cell: float, *, private: bool) ->
     """``build_grid``; ``private`` = the grid never leaves the calling wrapper, so its arrays may
     be scratch buffers (valid until the next private grid is built)."""
     _check_xyz(xyz)
-    pts = as_ndarray(xyz, np.float32)
+    pts = kernel_array(xyz, np.float32)
     n = length(pts)
     lo, hi = bounding_box(pts) if n else (np.zeros(3, np.float32), np.zeros(3, np.float32))
     extent = (hi - lo).astype(np.float32)

@@ -8,7 +8,7 @@ the result does not depend on thread timing and needs no float atomics.
 import numpy as np
 import taichi as ti
 
-from .common import INT32_MAX, as_ndarray, f32_order_key, like_input, ndarray
+from .common import INT32_MAX, f32_order_key, kernel_array, like_input, ndarray
 
 
 @ti.kernel
@@ -83,7 +83,7 @@ def cell_minimum(xyz, step: float):
     """
     if step <= 0:
         raise ValueError(f"grid step must be > 0, got {step}")
-    pts = as_ndarray(xyz, "float32")
+    pts = kernel_array(xyz, "float32")
     n = int(pts.shape[0])
     x_min, y_min, n_cols, n_rows = _grid_shape(_xy_bounds(pts), step)
     n_cells = n_cols * n_rows
@@ -112,7 +112,7 @@ def slope_filter(xyz, step: float, slope_max: float, dh_max: float):
 
     Returns ``(keep, height_above_cell_min)``: uint8 keep flags and float32 dh per point.
     """
-    pts = as_ndarray(xyz, "float32")
+    pts = kernel_array(xyz, "float32")
     n = int(pts.shape[0])
     cell, cell_lowest, _ = cell_minimum(pts, step)
     height = ndarray(ti.f32, (n,))

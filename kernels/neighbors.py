@@ -32,7 +32,7 @@ Kernels for k <= SMALL_K, each keeping an ascending list of the k best in regist
 import numpy as np
 import taichi as ti
 
-from .common import as_ndarray, length, like_input, ndarray
+from .common import host_memory_backend, kernel_array, length, like_input, ndarray
 from .grid import Grid, build_grid, build_grid_into, cell_hash, compact_mask, scratch
 from .scan import exclusive_scan_into
 
@@ -666,7 +666,7 @@ def _run_scan(grid: Grid, k: int, out_idx, out_dist, out_mean, emit_rows: bool, 
         _knn_select(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, *geometry,
                     _brute_cells(grid.n), self_slots, out_idx, out_dist, out_mean, emit_rows)
         return
-    if not _is_cpu():
+    if not host_memory_backend():
         # GPUs: one query per thread (the cell kernel runs one cell's queries serially in one
         # thread, which suits CPUs; under lavapipe such long invocations lost rows)
         queries = scratch("knn.all_queries", ti.i32, (grid.n,))
@@ -690,10 +690,6 @@ def _iota(out: ti.types.ndarray(dtype=ti.i32, ndim=1)):
         out[i] = i
 
 
-def _is_cpu() -> bool:
-    return ti.lang.impl.current_cfg().arch in (ti.x64, ti.arm64)
-
-
 def default_points_per_cell(k: int) -> float:
     """Cells of about 1.25 k points on a surface for small k (the 3x3 cells around a query then hold
     its k nearest nearly always, and few queries need the second ring or the block search);
@@ -710,7 +706,7 @@ def knn(xyz, k: int, *, grid: Grid = None, cell_size: float = None):
     built over the same ``xyz``; ``cell_size`` overrides the automatic cell size."""
     n = length(xyz)
     k = _check_k(k, n)
-    pts = as_ndarray(xyz, np.float32)
+    pts = kernel_array(xyz, np.float32)
     grid = _prepare(pts, k, grid, cell_size, default_points_per_cell(k))
     out_idx = ndarray(ti.i32, (n, k))
     out_dist = ndarray(ti.f32, (n, k))
@@ -731,7 +727,7 @@ def knn_mean_distance(xyz, k: int, *, include_self: bool = False, grid: Grid = N
         out = ndarray(ti.f32, (n,))   # only the point itself: distance 0
         return like_input(out, xyz)
     others = _check_k(others, n)
-    pts = as_ndarray(xyz, np.float32)
+    pts = kernel_array(xyz, np.float32)
     grid = _prepare(pts, others, grid, cell_size, default_points_per_cell(others))
     out_mean = ndarray(ti.f32, (n,))
     dummy_i = ndarray(ti.i32, (1, 1))
@@ -849,7 +845,7 @@ def radius_search(xyz, radius: float, *, max_neighbors: int = None, grid: Grid =
     if not radius >= 0:
         raise ValueError(f"radius must be >= 0, got {radius}")
     n = length(xyz)
-    pts = as_ndarray(xyz, np.float32)
+    pts = kernel_array(xyz, np.float32)
     if grid is None:
         # a cell slightly larger than the radius: one ring of cells covers it despite rounding
         grid = build_grid(pts, max(radius * 1.001, 1e-6) if n else 1.0)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import taichi as ti
 
-from .common import as_ndarray, like_input, ndarray, to_numpy
+from .common import as_ndarray, kernel_array, like_input, ndarray, to_numpy
 
 SAMPLE_SIZE = 1 << 16   # points every hypothesis is scored on in the preemptive pass
 FINALISTS = 8           # hypotheses scored on all points
@@ -204,7 +204,7 @@ def fit_plane(xyz, distance_threshold, *, hypotheses=1000, seed=0, active=None, 
     else:
         sample = point_index(np.sort(rng.choice(n_active, sample_n, replace=False)))
 
-    points = as_ndarray(xyz, "float32")
+    points = kernel_array(xyz, "float32")
     active_nd = as_ndarray(act_host.astype(np.uint8)) if act_host is not None else ndarray(ti.u8, (1,))
     use_active = int(act_host is not None)
     threshold = float(np.float32(distance_threshold))
