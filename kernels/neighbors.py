@@ -83,17 +83,29 @@ def _next_offset(d: ti.math.ivec3, ring: ti.i32) -> ti.math.ivec3:
 
 
 @ti.func
-def _box_distance(u: ti.math.vec3, c: ti.math.ivec3, d: ti.math.ivec3, cell_size: ti.f32) -> ti.f32:
-    """Lower bound of the distance from the query to any point of cell c + d."""
-    frac = u - ti.cast(c, ti.f32)
+def _box_margin(u: ti.math.vec3) -> ti.f32:
+    """Slack for float32 rounding of the cell assignment (relative to the coordinate magnitude)."""
+    return (ti.abs(u).max() + 2.0) * 1e-6
+
+
+@ti.func
+def _box_gap_sq(frac: ti.math.vec3, d: ti.math.ivec3, margin: ti.f32) -> ti.f32:
+    """Squared lower bound, in cell units, of the distance from a query at ``frac`` in its cell
+    to any point of the cell at offset d."""
     gap = ti.math.vec3(0.0)
     for a in ti.static(range(3)):
         if d[a] > 0:
             gap[a] = ti.cast(d[a], ti.f32) - frac[a]
         elif d[a] < 0:
             gap[a] = frac[a] - 1.0 - ti.cast(d[a], ti.f32)
-    margin = (ti.abs(u).max() + 2.0) * 1e-6
-    return ti.max(gap - margin, 0.0).norm() * cell_size
+    g = ti.max(gap - margin, 0.0)
+    return g.dot(g)
+
+
+@ti.func
+def _box_distance(u: ti.math.vec3, c: ti.math.ivec3, d: ti.math.ivec3, cell_size: ti.f32) -> ti.f32:
+    """Lower bound of the distance from the query to any point of cell c + d."""
+    return ti.sqrt(_box_gap_sq(u - ti.cast(c, ti.f32), d, _box_margin(u))) * cell_size
 
 
 @ti.func
@@ -123,38 +135,68 @@ def _distance(j: ti.i32, q: ti.math.vec3, sxyz: ti.template()) -> ti.f32:
 
 
 @ti.func
-def _insert_at(best_key: ti.template(), best_idx: ti.template(), pos: ti.i32, key: ti.i32, idx: ti.i32):
-    """Put (key, idx) at slot ``pos`` or before it, shifting larger pairs of slots < pos one up
-    (slot ``pos`` itself is free or dropped): one insertion-sort step."""
-    while pos > 0:
-        if _pair_less(key, idx, best_key[pos - 1], best_idx[pos - 1]):
-            best_key[pos] = best_key[pos - 1]
-            best_idx[pos] = best_idx[pos - 1]
-            pos -= 1
-        else:
-            break
-    best_key[pos] = key
-    best_idx[pos] = idx
+def _pack(key: ti.i32, idx: ti.i32) -> ti.i64:
+    """(key, index) as one word ordered as the pair (both are >= 0): one comparison and one
+    move per step of the list's insertion sort instead of two."""
+    return (ti.cast(key, ti.i64) << 32) | ti.cast(idx, ti.i64)
 
 
 @ti.func
-def _offer_best(best_key: ti.template(), best_idx: ti.template(), size: ti.i32, k: ti.i32,
-                key: ti.i32, idx: ti.i32) -> ti.i32:
-    """Offer (key, idx) to the ascending list of the k smallest pairs so far (insertion from
-    the end; the k-th is always at size - 1); returns the new size."""
+def _key_of(packed: ti.i64) -> ti.i32:
+    return ti.cast(packed >> 32, ti.i32)
+
+
+@ti.func
+def _idx_of(packed: ti.i64) -> ti.i32:
+    return ti.cast(packed & ti.i64(0xFFFFFFFF), ti.i32)
+
+
+@ti.func
+def _insert_at(best: ti.template(), pos: ti.i32, packed: ti.i64):
+    """Put a packed pair at slot ``pos`` or before it, shifting larger pairs of slots < pos one
+    up (slot ``pos`` itself is free or dropped): one insertion-sort step."""
+    while pos > 0:
+        if packed < best[pos - 1]:
+            best[pos] = best[pos - 1]
+            pos -= 1
+        else:
+            break
+    best[pos] = packed
+
+
+@ti.func
+def _offer_best(best: ti.template(), size: ti.i32, k: ti.i32, packed: ti.i64) -> ti.i32:
+    """Offer a packed (key, idx) pair to the ascending list of the k smallest pairs so far
+    (insertion from the end; the k-th is always at size - 1); returns the new size."""
     pos = -1
     if size < k:
         pos = size
         size += 1
-    elif _pair_less(key, idx, best_key[k - 1], best_idx[k - 1]):
+    elif packed < best[k - 1]:
         pos = k - 1
     if pos >= 0:
-        _insert_at(best_key, best_idx, pos, key, idx)
+        _insert_at(best, pos, packed)
     return size
 
 
 @ti.func
-def _emit_best(best_key: ti.template(), best_idx: ti.template(), size: ti.i32, k: ti.i32, qi: ti.i32,
+def _kth_distance(best: ti.template(), k: ti.i32) -> ti.f32:
+    """Distance of the k-th of a full list (keys are squared-distance float bits)."""
+    return ti.sqrt(ti.bit_cast(_key_of(best[k - 1]), ti.f32))
+
+
+@ti.func
+def _reach_sq(best: ti.template(), size: ti.i32, k: ti.i32, bound_sq: ti.f32, inv_cell: ti.f32) -> ti.f32:
+    """Squared reach of a query in cell units: its bound, or its k-th when the list is full and
+    nearer (keys are squared-distance float bits)."""
+    reach_sq = bound_sq
+    if size == k:
+        reach_sq = ti.min(reach_sq, ti.bit_cast(_key_of(best[k - 1]), ti.f32) * inv_cell * inv_cell)
+    return reach_sq
+
+
+@ti.func
+def _emit_best(best: ti.template(), size: ti.i32, k: ti.i32, qi: ti.i32,
                self_slots: ti.i32, out_idx: ti.template(), out_dist: ti.template(),
                out_mean: ti.template(), emit_rows: ti.template()):
     """Write the row (ascending (distance, index)) or its mean (summed in that canonical order,
@@ -163,14 +205,15 @@ def _emit_best(best_key: ti.template(), best_idx: ti.template(), size: ti.i32, k
     # roots, which may tie where the squares differ: an insertion pass restores (distance,
     # index) order among such ties
     for r in range(k):
-        best_key[r] = ti.bit_cast(ti.sqrt(ti.bit_cast(best_key[r], ti.f32)), ti.i32)
+        dist = ti.sqrt(ti.bit_cast(_key_of(best[r]), ti.f32))
+        best[r] = _pack(ti.bit_cast(dist, ti.i32), _idx_of(best[r]))
     for r in range(1, k):
-        _insert_at(best_key, best_idx, r, best_key[r], best_idx[r])
+        _insert_at(best, r, best[r])
     dist_sum = 0.0
     for r in range(k):
-        dist = ti.bit_cast(best_key[r], ti.f32)
+        dist = ti.bit_cast(_key_of(best[r]), ti.f32)
         if ti.static(emit_rows):
-            out_idx[qi, r] = best_idx[r]
+            out_idx[qi, r] = _idx_of(best[r])
             out_dist[qi, r] = dist
         else:
             dist_sum += dist
@@ -179,8 +222,8 @@ def _emit_best(best_key: ti.template(), best_idx: ti.template(), size: ti.i32, k
 
 
 @ti.func
-def _offer_run(lo: ti.i32, hi: ti.i32, s: ti.i32, q: ti.math.vec3, best_key: ti.template(),
-               best_idx: ti.template(), size: ti.i32, k: ti.i32, order: ti.template(),
+def _offer_run(lo: ti.i32, hi: ti.i32, s: ti.i32, q: ti.math.vec3, best: ti.template(),
+               size: ti.i32, k: ti.i32, order: ti.template(),
                sxyz: ti.template(), bound: ti.f32) -> ti.i32:
     """Offer the points at sorted positions [lo, hi) (except s, the query) that lie within
     ``bound`` (an upper bound on the k-th distance, +inf when none is known) to the list of
@@ -188,14 +231,14 @@ def _offer_run(lo: ti.i32, hi: ti.i32, s: ti.i32, q: ti.math.vec3, best_key: ti.
     # keys are the float bits of squared distances (ordered as the floats, no sqrt per candidate)
     top = ti.bit_cast(bound * bound * 1.00001, ti.i32)
     if size == k:
-        top = ti.min(top, best_key[k - 1])
+        top = ti.min(top, _key_of(best[k - 1]))
     for j in range(lo, hi):
         p = ti.math.vec3(sxyz[j, 0], sxyz[j, 1], sxyz[j, 2]) - q
         key = ti.bit_cast(p.dot(p), ti.i32)
         if key <= top and j != s:
-            size = _offer_best(best_key, best_idx, size, k, key, order[j])
+            size = _offer_best(best, size, k, _pack(key, order[j]))
             if size == k:
-                top = ti.min(top, best_key[k - 1])
+                top = ti.min(top, _key_of(best[k - 1]))
     return size
 
 
@@ -258,37 +301,34 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
             # the previous query's k nearest plus that query itself are k points other than q
             # within prev_kth + |q - prev_q|: a bound that rejects most candidates up front
             bound = (prev_kth + (q - prev_q).norm()) * 1.00001 + 1e-30
-            best_key = ti.Vector([0] * SMALL_K, ti.i32)
-            best_idx = ti.Vector([0] * SMALL_K, ti.i32)
+            best = ti.Vector([0] * SMALL_K, ti.i64)
             size = 0
+            # cells are tested in squared cell units: no square root per cell and candidate
+            frac = u - ti.cast(c, ti.f32)
+            margin = _box_margin(u)
+            bound_sq = bound * bound * inv_cell * inv_cell
             for r in range(n_runs):
                 t = run_at[r]
                 d = ti.math.ivec3(t % 3 - 1, (t // 3) % 3 - 1, t // 9 - 1)
-                reach = bound
-                if size == k:
-                    reach = ti.min(reach, ti.sqrt(ti.bit_cast(best_key[k - 1], ti.f32)))
-                if _box_distance(u, c, d, cell_size) <= reach:
-                    size = _offer_run(run_lo[r], run_hi[r], s, q, best_key, best_idx, size, k, order, sxyz, bound)
+                if _box_gap_sq(frac, d, margin) <= _reach_sq(best, size, k, bound_sq, inv_cell):
+                    size = _offer_run(run_lo[r], run_hi[r], s, q, best, size, k, order, sxyz, bound)
             settled = 0
-            if size == k and ti.sqrt(ti.bit_cast(best_key[k - 1], ti.f32)) < _safe_radius(u, c, 1, cell_size):
+            if size == k and _kth_distance(best, k) < _safe_radius(u, c, 1, cell_size):
                 settled = 1
             else:
                 for t in range(125):
                     d = ti.math.ivec3(t % 5 - 2, (t // 5) % 5 - 2, t // 25 - 2)
                     if ti.abs(d).max() == 2:
-                        reach = bound
-                        if size == k:
-                            reach = ti.min(reach, ti.sqrt(ti.bit_cast(best_key[k - 1], ti.f32)))
-                        if _box_distance(u, c, d, cell_size) <= reach:
+                        if _box_gap_sq(frac, d, margin) <= _reach_sq(best, size, k, bound_sq, inv_cell):
                             rg = _cell_run(c + d, bstart, scell, mask)
-                            size = _offer_run(rg[0], rg[1], s, q, best_key, best_idx, size, k, order, sxyz, bound)
-                if size == k and ti.sqrt(ti.bit_cast(best_key[k - 1], ti.f32)) < _safe_radius(u, c, 2, cell_size):
+                            size = _offer_run(rg[0], rg[1], s, q, best, size, k, order, sxyz, bound)
+                if size == k and _kth_distance(best, k) < _safe_radius(u, c, 2, cell_size):
                     settled = 1
             if size == k:
                 prev_q = q
-                prev_kth = ti.sqrt(ti.bit_cast(best_key[k - 1], ti.f32))
+                prev_kth = _kth_distance(best, k)
             if settled:
-                _emit_best(best_key, best_idx, size, k, order[s], self_slots, out_idx, out_dist,
+                _emit_best(best, size, k, order[s], self_slots, out_idx, out_dist,
                            out_mean, emit_rows)
             pending[s] = 1 - settled
 
@@ -316,8 +356,7 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
         q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
         cb = ti.math.ivec3(scell[s, 0], scell[s, 1], scell[s, 2]) >> block_bits
         u = (q - ti.math.vec3(ox, oy, oz)) * (inv_cell / ti.cast(block, ti.f32))
-        best_key = ti.Vector([0] * SMALL_K, ti.i32)
-        best_idx = ti.Vector([0] * SMALL_K, ti.i32)
+        best = ti.Vector([0] * SMALL_K, ti.i64)
         size = 0
         ring = 0
         done = 0
@@ -328,7 +367,7 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                     if j != s:
                         bj = ti.math.ivec3(scell[j, 0], scell[j, 1], scell[j, 2]) >> block_bits
                         if ti.abs(bj - cb).max() >= ring:
-                            size = _offer_run(j, j + 1, s, q, best_key, best_idx, size, k, order, sxyz, ti.math.inf)
+                            size = _offer_run(j, j + 1, s, q, best, size, k, order, sxyz, ti.math.inf)
                 done = 1
             else:
                 # the shell of blocks at Chebyshev distance ring: whole faces at dz or dy = +-ring,
@@ -343,7 +382,7 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                             d = ti.math.ivec3(dx, dy, dz)
                             visit = 1
                             if size == k:
-                                if _box_distance(u, cb, d, block_size) > ti.sqrt(ti.bit_cast(best_key[k - 1], ti.f32)):
+                                if _box_distance(u, cb, d, block_size) > _kth_distance(best, k):
                                     visit = 0
                             if visit:
                                 target = cb + d
@@ -351,13 +390,13 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                                 for j in range(bstart[base], bstart[base + span]):
                                     if scell[j, 0] >> block_bits == target[0] and scell[j, 1] >> block_bits == target[1] \
                                             and scell[j, 2] >> block_bits == target[2]:
-                                        size = _offer_run(j, j + 1, s, q, best_key, best_idx, size, k, order, sxyz, ti.math.inf)
+                                        size = _offer_run(j, j + 1, s, q, best, size, k, order, sxyz, ti.math.inf)
                             dx += step
-                if size == k and ti.sqrt(ti.bit_cast(best_key[k - 1], ti.f32)) < _safe_radius(u, cb, ring, block_size):
+                if size == k and _kth_distance(best, k) < _safe_radius(u, cb, ring, block_size):
                     done = 1
                 else:
                     ring += 1
-        _emit_best(best_key, best_idx, size, k, qi, self_slots, out_idx, out_dist, out_mean, emit_rows)
+        _emit_best(best, size, k, qi, self_slots, out_idx, out_dist, out_mean, emit_rows)
 
 
 @ti.func
