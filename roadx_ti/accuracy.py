@@ -48,7 +48,8 @@ NOTES = {
     "roof": [
         "IGN ign_870000_6618000: a 15 x 14 m gabled building south-west of the centre (2,414 points "
         "at 6-9 m, 92 % single returns, grey roof) carries class 1 in the truth; the pipeline finds "
-        "it, and it counts as 2,414 false positives of the 3,173 above.",
+        "it, and it counts as 2,414 false positives of the 3,173 above. Scored with that building as "
+        "roof: kappa 0.933, total error 1.56 %; with its points left out: kappa 0.914 (2026-11-22).",
         "The six IGN tiles have no colour: roof growing uses their LiDAR returns as the vegetation "
         "cue (`roof_growing.use_returns`); with it off, kappa was 0.829 / 0.765 / 0.949 / 0.732 / "
         "0.838 / 0.810 on them (2026-11-22).",
