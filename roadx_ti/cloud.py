@@ -62,7 +62,7 @@ class Cloud:
     def penetrated(self) -> np.ndarray | None:
         """bool (n,): the point is an earlier return of a pulse that went on (return number below
         the number of returns): foliage, hedges and roof edges, rarely roof interiors. None
-        without return information (or when every point says 1 of 1 or 0 of 0)."""
+        without return information, or when no pulse has more than one return."""
         if self.returns is None:
             return None
         number, count = self.returns[:, 0], self.returns[:, 1]

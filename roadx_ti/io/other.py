@@ -102,7 +102,8 @@ def _columns(cloud: Cloud, classification, extra_dims, subset):
         if classes.size and (classes.min() < 0 or classes.max() > 255):
             raise ValueError("classification values must be 0-255")
         cols["classification"] = classes.astype(np.uint8)
-    if cloud.returns is not None and not {"return_number", "number_of_returns"} & {k.lower() for k in cloud.attributes}:
+    own_columns = {k.lower() for k in cloud.attributes}
+    if cloud.returns is not None and not {"return_number", "number_of_returns"} & own_columns:
         returns = pick(cloud.returns)
         cols["return_number"], cols["number_of_returns"] = returns[:, 0].copy(), returns[:, 1].copy()
     extras = dict(cloud.attributes)
