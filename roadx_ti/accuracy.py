@@ -40,7 +40,7 @@ NOTES = {
     "road": [
         "Sensitivity of colour growing to its point threshold Q_t (`color_growing.point_threshold`, "
         "default 10), measured 2026-11-22 on the scenes above: synthetic 9.5 -> seed 0 E2 4.08 %; "
-        "10.6 -> seed 1 E2 15.60 % (a sidewalk region passes the road-like test); AHN3 (intensity) "
+        "10.6 -> seed 1 E2 15.60 % (the main road region itself leaks into the sidewalk); AHN3 (intensity) "
         "12 -> E1 20.2 %, 12.5-13.3 -> E1 8.8 % / E2 19.6 %, 14-15 -> E2 21.5-22.5 %. Growing by a "
         "point-to-point threshold flips between leaking and splitting within +-10 % of it: check "
         "the PNGs when changing it or the colour source.",
