@@ -73,14 +73,30 @@ def datasets(task: str, points: int, seeds=(0, 1, 2)):
                      lambda: io.read(SHARED_DATA / "roof" / "ign_870000_6618000.las"), [6], "roof_als.yaml"))
         rows.append(("IGN ign_874000_6617000_reviewed",
                      lambda: io.read(SHARED_DATA / "roof" / "ign_874000_6617000_reviewed.laz"), [19], "roof_als.yaml"))
-        # the six adjacent IGN tiles: real roofs without colour (returns are the vegetation cue)
-        for path in sorted((SHARED_DATA / "tiles").glob("*.laz")):
+        # the six adjacent IGN tiles: real roofs without colour (returns are the vegetation cue),
+        # each alone (buildings cut by its edge count), then as the one block they form
+        tiles = sorted((SHARED_DATA / "tiles").glob("*.laz"))
+        for path in tiles:
             rows.append((f"IGN tile {path.stem.split('_LA93')[0]} (no colour)",
                          lambda p=path: io.read(p), [6], "roof_als.yaml"))
+        if tiles:
+            rows.append((f"IGN tiles merged: the {len(tiles)} above as one block (no colour)",
+                         lambda: _merged(tiles), [6], "roof_als.yaml"))
         for seed in seeds:
             rows.append((f"synthetic als-roof {points // 1000}k seed {seed}",
                          lambda s=seed: synthetic.generate("als-roof", points, s), [6], "roof_als.yaml"))
     return rows
+
+
+def _merged(paths):
+    """One cloud of adjacent files (a common local origin: the floor of their lowest corner)."""
+    from roadx_ti import io
+    from roadx_ti.tiling import concat_clouds
+
+    headers = io.read_headers(paths)
+    origin = np.floor([min(h[1][0] for h in headers), min(h[1][1] for h in headers),
+                       min(h[3][0] for h in headers)])
+    return concat_clouds([io.read(p, origin=origin) for p in paths], origin)
 
 
 def evaluate(task: str, out: Path, points: int) -> list[dict]:

@@ -283,7 +283,7 @@ def _world_xy(cloud: Cloud) -> tuple[np.ndarray, np.ndarray]:
             cloud.xyz[:, 1].astype(np.float64) + cloud.origin[1])
 
 
-def _concat(clouds: list[Cloud], origin: np.ndarray) -> Cloud:
+def concat_clouds(clouds: list[Cloud], origin: np.ndarray) -> Cloud:
     """One processing cloud from several files' windows (same origin); colour only when all have it."""
     if len(clouds) == 1:
         return clouds[0]
@@ -346,7 +346,7 @@ def run_tile(job: TileJob) -> TileResult:
         result.seconds = time.perf_counter() - t_start
         return result
     counts = [p.n for p in pieces]
-    cloud = _concat(pieces, job.read_origin)
+    cloud = concat_clouds(pieces, job.read_origin)
     x, y = np.concatenate(xs), np.concatenate(ys)
     del pieces, xs, ys
     if not backend.is_initialized():
@@ -667,7 +667,7 @@ def _write_generic(out: Path, file_ids, merge: _Merge, processed_only: bool) -> 
         labels.append(merge.labels(k, x, y, cloud.classification))
         merge.check_file(k, cloud.n)
         clouds.append(cloud)
-    cloud = clouds[0] if len(clouds) == 1 else _concat(clouds, merge.plan.read_origin)
+    cloud = clouds[0] if len(clouds) == 1 else concat_clouds(clouds, merge.plan.read_origin)
     cls, dec, seg, proc = (np.concatenate(parts) for parts in zip(*labels))
     io.write(out, cloud, classification=cls, extra_dims={"roadx_label": dec, "segment_id": seg},
              subset=proc if processed_only else None)
