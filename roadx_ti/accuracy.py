@@ -39,11 +39,13 @@ REFERENCE_ROWS = {
 NOTES = {
     "road": [
         "Sensitivity of colour growing to its point threshold Q_t (`color_growing.point_threshold`, "
-        "default 10), measured 2026-11-22 on the scenes above: synthetic 9.5 -> seed 0 E2 4.08 %; "
-        "10.6 -> seed 1 E2 15.60 % (the main road region itself leaks into the sidewalk); AHN3 (intensity) "
-        "12 -> E1 20.2 %, 12.5-13.3 -> E1 8.8 % / E2 19.6 %, 14-15 -> E2 21.5-22.5 %. Growing by a "
-        "point-to-point threshold flips between leaking and splitting within +-10 % of it: check "
-        "the PNGs when changing it or the colour source.",
+        "default 10), measured 2026-11-22 on the scenes above with road_uav.yaml: synthetic 9.5 -> "
+        "seed 0 E2 4.42 %; 10.6 -> seed 1 E2 15.66 % (the main road region itself leaks into the "
+        "sidewalk), seed 2 E2 2.32 %; AHN3 (intensity) 12 -> E1 18.4 % / E2 21.3 %, 12.5-15 -> E1 "
+        "8.8 % / E2 19.6-22.5 %. Growing by a point-to-point threshold flips between leaking and "
+        "splitting within +-10 % of it: check the PNGs when changing it or the colour source.",
+        "absorb_enclosed 0.4 (was 0.5): synthetic seeds 0-5 E1 1.3 / 1.5 / 1.3 / 1.9 / 1.0 / 0.9 % "
+        "(was 5.8 / 2.6 / 1.5 / 4.0 / 3.7 / 0.9 %), E2 <= 0.5 %; AHN3 E1 19.6 % (19.9), E2 8.1 % (6.4).",
     ],
     "roof": [
         "IGN ign_870000_6618000: a 15 x 14 m gabled building south-west of the centre (2,414 points "
