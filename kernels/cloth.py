@@ -263,10 +263,16 @@ def _band_row_range(b, rows, band_rows, band_shift) -> ti.math.ivec2:
 
 
 @ti.func
+def _even_bands(bands, band_phase):
+    """How many of the bands have an even world index (band_phase: world index parity of band 0)."""
+    return (bands - band_phase + 1) // 2
+
+
+@ti.func
 def _phase_band(t, bands, band_phase):
     """t-th band of the sweep order: the bands of even world index first, then the odd ones
     (band_phase: world index parity of band 0)."""
-    first = (bands - band_phase + 1) // 2     # bands of even world index
+    first = _even_bands(bands, band_phase)
     b = 2 * t + band_phase
     if t >= first:
         b = 2 * (t - first) + 1 - band_phase
@@ -451,12 +457,12 @@ def _iterate(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
             _verlet_band(b, pos, old_pos, movable, band_list, band_count, width, rows, band_rows,
                          band_shift, acceleration)
     ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
-    for t in range((bands - band_phase + 1) // 2):
+    for t in range(_even_bands(bands, band_phase)):
         if state[0] == 0:
             _sweep_band(2 * t + band_phase, pos, movable, band_list, band_count, width, rows,
                         band_rows, band_shift, moves)
     ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
-    for t in range((bands - 1 + band_phase + 1) // 2):
+    for t in range(bands - _even_bands(bands, band_phase)):
         if state[0] == 0:
             _sweep_band(2 * t + 1 - band_phase, pos, movable, band_list, band_count, width, rows,
                         band_rows, band_shift, moves)

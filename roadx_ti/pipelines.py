@@ -78,20 +78,20 @@ def run(cloud: Cloud, stages, *, ctx: StageContext | None = None, truth: np.ndar
                "seconds": round(seconds, 4), "info": result.info}
         if result.labels is not None:
             classification[working] = result.labels
-            if truth is not None and target_class is not None:
-                as_target = np.asarray(result.labels) == target_class
-                working_truth = truth[working]
-                row["unlabelled_target"] = int((working_truth & ~as_target).sum())
-                row["labelled_other"] = int((~working_truth & as_target).sum())
         if result.segment_id is not None:
             segment_id[working] = result.segment_id
-            if result.labels is None and truth is not None and target_class is not None:
-                # a segmenting stage (roof growing): target points left outside every segment,
-                # non-target points inside one
-                in_segment = np.asarray(result.segment_id) >= 0
+        if truth is not None and target_class is not None:
+            # a labelling stage: the points it gives the target class; a stage that only segments
+            # (roof growing): the points it puts in a segment
+            given = None
+            if result.labels is not None:
+                given = np.asarray(result.labels) == target_class
+            elif result.segment_id is not None:
+                given = np.asarray(result.segment_id) >= 0
+            if given is not None:
                 working_truth = truth[working]
-                row["unlabelled_target"] = int((working_truth & ~in_segment).sum())
-                row["labelled_other"] = int((~working_truth & in_segment).sum())
+                row["unlabelled_target"] = int((working_truth & ~given).sum())
+                row["labelled_other"] = int((~working_truth & given).sum())
         for key, values in result.point_data.items():
             ctx.point_data[key] = values
         if result.keep is not None:

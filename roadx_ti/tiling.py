@@ -667,7 +667,7 @@ def _write_generic(out: Path, file_ids, merge: _Merge, processed_only: bool) -> 
         labels.append(merge.labels(k, x, y, cloud.classification))
         merge.check_file(k, cloud.n)
         clouds.append(cloud)
-    cloud = clouds[0] if len(clouds) == 1 else concat_clouds(clouds, merge.plan.read_origin)
+    cloud = concat_clouds(clouds, merge.plan.read_origin)
     cls, dec, seg, proc = (np.concatenate(parts) for parts in zip(*labels))
     io.write(out, cloud, classification=cls, extra_dims={"roadx_label": dec, "segment_id": seg},
              subset=proc if processed_only else None)
