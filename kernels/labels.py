@@ -253,22 +253,24 @@ def merge_regions(labels, neighbors, rgb, threshold, min_size=0):
     get -1. Returns int32 (n,), numpy or ndarray as ``labels``.
     """
     lab = to_numpy(labels).astype(np.int64, copy=False)
-    nbr = to_numpy(neighbors).astype(np.int64, copy=False)
+    nbr = to_numpy(neighbors).astype(np.int32, copy=False)
     n = len(lab)
     ids, counts, means = region_stats(lab, rgb)
     valid = lab >= 0
-    region = np.full(n, -1, np.int64)
+    region = np.full(n, -1, np.int32)
     region[valid] = np.searchsorted(ids, lab[valid])
     r_count = len(ids)
 
     if nbr.size and r_count:
-        rows = np.repeat(np.arange(n, dtype=np.int64), nbr.shape[1])
-        cols = nbr.reshape(-1)
-        ra = region[rows]
-        rb = np.where(cols >= 0, region[np.maximum(cols, 0)], -1)
+        # region pairs across graph edges, from the (n, k) table (no expanded int64 edge lists)
+        real = nbr >= 0
+        rb = np.where(real, region[np.where(real, nbr, 0)], -1)
+        ra = region[:, None]
         keep = (ra >= 0) & (rb >= 0) & (ra != rb)
-        lo = np.minimum(ra[keep], rb[keep])
-        hi = np.maximum(ra[keep], rb[keep])
+        ra = np.broadcast_to(ra, nbr.shape)[keep].astype(np.int64)
+        rb = rb[keep].astype(np.int64)
+        lo = np.minimum(ra, rb)
+        hi = np.maximum(ra, rb)
         pairs = np.unique(lo * r_count + hi)
         a = pairs // r_count
         b = pairs % r_count

@@ -33,7 +33,7 @@ import numpy as np
 import taichi as ti
 
 from .common import host_memory_backend, kernel_array, length, like_input, ndarray
-from .grid import Grid, build_grid, build_grid_into, cell_hash, compact_mask, scratch
+from .grid import Grid, build_grid, build_grid_into, cell_hash, cell_of, compact_mask, scratch
 from .scan import exclusive_scan_into
 
 SMALL_K = 32
@@ -333,6 +333,63 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
             pending[s] = 1 - settled
 
 
+@ti.func
+def _block_search(q: ti.math.vec3, s: ti.i32, best: ti.template(), k: ti.i32, order: ti.template(),
+                  sxyz: ti.template(), scell: ti.template(), bstart: ti.template(), mask: ti.i32,
+                  ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32, inv_cell: ti.f32,
+                  brute_blocks: ti.i32, block_bits: ti.i32) -> ti.i32:
+    """Fill ``best`` with the k nearest grid points of q (sorted position s excluded; -1: none)
+    and return how many it holds. Searches blocks of cells shell by shell around q's block,
+    skipping blocks farther than the current k-th; past ``brute_blocks`` it scans all points."""
+    n = sxyz.shape[0]
+    block = 1 << block_bits
+    span = 1 << (3 * block_bits)
+    block_size = cell_size * ti.cast(block, ti.f32)
+    # q's cell as the grid assigns it (cell_of: the same arithmetic as the build)
+    cb = cell_of(q[0], q[1], q[2], ox, oy, oz, inv_cell) >> block_bits
+    u = (q - ti.math.vec3(ox, oy, oz)) * (inv_cell / ti.cast(block, ti.f32))
+    size = 0
+    ring = 0
+    done = 0
+    while done == 0:
+        if (2 * ring + 1) * (2 * ring + 1) * (2 * ring + 1) > brute_blocks:
+            # far from everything: every point outside the rings already scanned
+            for j in range(n):
+                if j != s:
+                    bj = ti.math.ivec3(scell[j, 0], scell[j, 1], scell[j, 2]) >> block_bits
+                    if ti.abs(bj - cb).max() >= ring:
+                        size = _offer_run(j, j + 1, s, q, best, size, k, order, sxyz, ti.math.inf)
+            done = 1
+        else:
+            # the shell of blocks at Chebyshev distance ring: whole faces at dz or dy = +-ring,
+            # otherwise only dx = +-ring
+            for dz in range(-ring, ring + 1):
+                for dy in range(-ring, ring + 1):
+                    step = 1
+                    if ti.abs(dz) != ring and ti.abs(dy) != ring:
+                        step = ti.max(2 * ring, 1)
+                    dx = -ring
+                    while dx <= ring:
+                        d = ti.math.ivec3(dx, dy, dz)
+                        visit = 1
+                        if size == k:
+                            if _box_distance(u, cb, d, block_size) > _kth_distance(best, k):
+                                visit = 0
+                        if visit:
+                            target = cb + d
+                            base = cell_hash(target << block_bits, mask)   # its span of buckets
+                            for j in range(bstart[base], bstart[base + span]):
+                                if scell[j, 0] >> block_bits == target[0] and scell[j, 1] >> block_bits == target[1] \
+                                        and scell[j, 2] >> block_bits == target[2]:
+                                    size = _offer_run(j, j + 1, s, q, best, size, k, order, sxyz, ti.math.inf)
+                        dx += step
+            if size == k and _kth_distance(best, k) < _safe_radius(u, cb, ring, block_size):
+                done = 1
+            else:
+                ring += 1
+    return size
+
+
 @ti.kernel
 def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
                 scell: ti.types.ndarray(dtype=ti.i32, ndim=2), bstart: ti.types.ndarray(dtype=ti.i32, ndim=1),
@@ -341,62 +398,35 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                 k: ti.i32, brute_blocks: ti.i32, self_slots: ti.i32, block_bits: ti.i32,
                 out_idx: ti.types.ndarray(dtype=ti.i32, ndim=2), out_dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
                 out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.template()):
-    """k <= SMALL_K, one query per thread for the points at sorted positions ``queries``.
-    Searches blocks of cells shell by shell around the query's block, skipping blocks farther
-    than the current k-th; past ``brute_blocks`` it scans all points. ``block_bits`` 2: blocks
-    of 4x4x4 cells (one contiguous range of 64 buckets, ``grid.cell_hash``), for the sparse
-    regions and outliers the cell kernel leaves; 0: single cells (every query on GPUs)."""
-    n = sxyz.shape[0]
-    block = 1 << block_bits
-    span = 1 << (3 * block_bits)
-    block_size = cell_size * ti.cast(block, ti.f32)
+    """k <= SMALL_K, one query per thread for the points at sorted positions ``queries``
+    (``_block_search``). ``block_bits`` 2: blocks of 4x4x4 cells (one contiguous range of 64
+    buckets, ``grid.cell_hash``), for the sparse regions and outliers the cell kernel leaves;
+    0: single cells (every query on GPUs)."""
     for qs in range(queries.shape[0]):
         s = queries[qs]
-        qi = order[s]
         q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
-        cb = ti.math.ivec3(scell[s, 0], scell[s, 1], scell[s, 2]) >> block_bits
-        u = (q - ti.math.vec3(ox, oy, oz)) * (inv_cell / ti.cast(block, ti.f32))
         best = ti.Vector([0] * SMALL_K, ti.i64)
-        size = 0
-        ring = 0
-        done = 0
-        while done == 0:
-            if (2 * ring + 1) * (2 * ring + 1) * (2 * ring + 1) > brute_blocks:
-                # far from everything: every point outside the rings already scanned
-                for j in range(n):
-                    if j != s:
-                        bj = ti.math.ivec3(scell[j, 0], scell[j, 1], scell[j, 2]) >> block_bits
-                        if ti.abs(bj - cb).max() >= ring:
-                            size = _offer_run(j, j + 1, s, q, best, size, k, order, sxyz, ti.math.inf)
-                done = 1
-            else:
-                # the shell of blocks at Chebyshev distance ring: whole faces at dz or dy = +-ring,
-                # otherwise only dx = +-ring
-                for dz in range(-ring, ring + 1):
-                    for dy in range(-ring, ring + 1):
-                        step = 1
-                        if ti.abs(dz) != ring and ti.abs(dy) != ring:
-                            step = ti.max(2 * ring, 1)
-                        dx = -ring
-                        while dx <= ring:
-                            d = ti.math.ivec3(dx, dy, dz)
-                            visit = 1
-                            if size == k:
-                                if _box_distance(u, cb, d, block_size) > _kth_distance(best, k):
-                                    visit = 0
-                            if visit:
-                                target = cb + d
-                                base = cell_hash(target << block_bits, mask)   # its span of buckets
-                                for j in range(bstart[base], bstart[base + span]):
-                                    if scell[j, 0] >> block_bits == target[0] and scell[j, 1] >> block_bits == target[1] \
-                                            and scell[j, 2] >> block_bits == target[2]:
-                                        size = _offer_run(j, j + 1, s, q, best, size, k, order, sxyz, ti.math.inf)
-                            dx += step
-                if size == k and _kth_distance(best, k) < _safe_radius(u, cb, ring, block_size):
-                    done = 1
-                else:
-                    ring += 1
-        _emit_best(best, size, k, qi, self_slots, out_idx, out_dist, out_mean, emit_rows)
+        size = _block_search(q, s, best, k, order, sxyz, scell, bstart, mask, ox, oy, oz, cell_size,
+                             inv_cell, brute_blocks, block_bits)
+        _emit_best(best, size, k, order[s], self_slots, out_idx, out_dist, out_mean, emit_rows)
+
+
+@ti.kernel
+def _nearest_of(query_xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), order: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                sxyz: ti.types.ndarray(dtype=ti.f32, ndim=2), scell: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                bstart: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                mask: ti.i32, ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32, inv_cell: ti.f32,
+                brute_blocks: ti.i32, block_bits: ti.i32,
+                out_idx: ti.types.ndarray(dtype=ti.i32, ndim=1), out_dist: ti.types.ndarray(dtype=ti.f32, ndim=1)):
+    """The nearest grid point of every query point (another point set): (squared distance,
+    index) minimum, so ties go to the lower index."""
+    for qi in range(query_xyz.shape[0]):
+        q = ti.math.vec3(query_xyz[qi, 0], query_xyz[qi, 1], query_xyz[qi, 2])
+        best = ti.Vector([0] * 1, ti.i64)
+        _block_search(q, -1, best, 1, order, sxyz, scell, bstart, mask, ox, oy, oz, cell_size,
+                      inv_cell, brute_blocks, block_bits)
+        out_idx[qi] = _idx_of(best[0])
+        out_dist[qi] = ti.sqrt(ti.bit_cast(_key_of(best[0]), ti.f32))
 
 
 @ti.func
@@ -773,6 +803,34 @@ def knn_mean_distance(xyz, k: int, *, include_self: bool = False, grid: Grid = N
     dummy_f = ndarray(ti.f32, (1, 1))
     _run_scan(grid, others, dummy_i, dummy_f, out_mean, False, 1 if include_self else 0)
     return like_input(out_mean, xyz)
+
+
+NEAREST_POINTS_PER_CELL = 16.0  # k = 1 mostly settles in its own cell or the next ring
+
+
+def nearest(reference, queries, *, grid: Grid = None, cell_size: float = None):
+    """Nearest ``reference`` point of every ``queries`` point (two point sets, (n, 3) and (m, 3)
+    float32, in the same local frame), exact, ties to the lower reference index.
+
+    Returns (indices int32 (m,), distances float32 (m,)). numpy in -> numpy out; a Taichi
+    ndarray of queries -> ndarrays out (numpy when m = 0: Taichi has no empty ndarrays).
+    ``grid`` reuses a grid built over ``reference``; ``cell_size`` overrides the automatic one."""
+    n, m = length(reference), length(queries)
+    if n == 0:
+        raise ValueError("nearest: the reference point set is empty")
+    if len(queries.shape) != 2 or int(queries.shape[1]) != 3:
+        raise ValueError(f"queries must have shape (m, 3), got {tuple(queries.shape)}")
+    if m == 0:
+        return np.zeros(0, np.int32), np.zeros(0, np.float32)
+    ref = kernel_array(reference, np.float32)
+    grid = _prepare(ref, 1, grid, cell_size, NEAREST_POINTS_PER_CELL)
+    pts = kernel_array(queries, np.float32)
+    out_idx = ndarray(ti.i32, (m,))
+    out_dist = ndarray(ti.f32, (m,))
+    ox, oy, oz = grid.origin
+    _nearest_of(pts, grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, grid.table_mask,
+                ox, oy, oz, grid.cell_size, grid.inv_cell, _brute_cells(grid.n), 0, out_idx, out_dist)
+    return like_input(out_idx, queries), like_input(out_dist, queries)
 
 
 # ---------------------------------------------------------------- radius search

@@ -120,16 +120,15 @@ def run(cloud: Cloud, stages, *, ctx: StageContext | None = None, truth: np.ndar
 
 
 def _transfer_labels(cloud, processed, classification, decided_by, segment_id):
-    """Points skipped by downsampling take the result of their nearest processed point."""
-    from scipy.spatial import cKDTree
+    """Points skipped by downsampling take the result of their nearest processed point (ties to
+    the lower index)."""
+    from roadx_ti.kernels.neighbors import nearest
 
     source = np.flatnonzero(processed)
     target = np.flatnonzero(~processed)
     if len(source) == 0:
         return
-    tree = cKDTree(cloud.xyz[source])
-    _, nearest = tree.query(cloud.xyz[target], k=1, workers=-1)
-    donor = source[nearest]
+    donor = source[nearest(cloud.xyz[source], cloud.xyz[target])[0]]
     classification[target] = classification[donor]
     decided_by[target] = decided_by[donor]
     segment_id[target] = segment_id[donor]

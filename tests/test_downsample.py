@@ -24,3 +24,34 @@ def test_index_product_beyond_32_bits(ti_arch):
     expected = np.arange(m, dtype=np.int64) * n // m
     np.testing.assert_array_equal(index.to_numpy(), expected)
     np.testing.assert_array_equal(kept.to_numpy()[:, 0], expected.astype(np.float32))
+
+
+def test_skipped_points_take_their_nearest_processed_points_result():
+    """R1 label transfer: after a subsampling stage, every skipped point takes the class,
+    deciding stage and segment of its nearest processed point (cKDTree as the reference)."""
+    from scipy.spatial import cKDTree
+
+    from roadx_ti import pipelines
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import Stage, StageResult
+    from roadx_ti.stages.downsample import UniformDownsample
+
+    class LabelByX(Stage):
+        name = "label_by_x"
+
+        def run(self, cloud, ctx):
+            x = cloud.xyz[:, 0]
+            labels = np.where(np.floor(x).astype(int) % 2 == 0, 11, 1).astype(np.uint8)
+            return StageResult(labels=labels, segment_id=np.floor(x * 3).astype(np.int32))
+
+    rng = np.random.default_rng(5)
+    xyz = (rng.random((20000, 3)) * [20, 20, 1]).astype(np.float32)
+    cloud = Cloud(xyz=xyz, origin=np.zeros(3))
+    result = pipelines.run(cloud, [UniformDownsample({"ratio": 0.3}), LabelByX()])
+    done, skipped = np.flatnonzero(result.processed), np.flatnonzero(~result.processed)
+    assert 0 < len(done) < len(xyz)
+    _, near = cKDTree(xyz[done].astype(np.float64)).query(xyz[skipped].astype(np.float64), 1)
+    donor = done[near]
+    np.testing.assert_array_equal(result.classification[skipped], result.classification[donor])
+    np.testing.assert_array_equal(result.segment_id[skipped], result.segment_id[donor])
+    np.testing.assert_array_equal(result.decided_by[skipped], result.decided_by[donor])

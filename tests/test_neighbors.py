@@ -146,3 +146,63 @@ def test_radius_search_matches_kdtree(ti_arch, kind):
     np.testing.assert_array_equal(np.diff(off2), counts)
     for i in range(0, len(xyz), 97):
         np.testing.assert_array_equal(idx2[off2[i]:off2[i + 1]], idx[offsets[i]:offsets[i] + counts[i]])
+
+
+def assert_nearest_matches_kdtree(reference, queries, idx, dist):
+    """Exact: every query's distance equals cKDTree's nearest distance; among reference points
+    at the same coordinates (equidistant in any arithmetic) the lowest index is returned.
+    Returns how many queries hit such a duplicated point."""
+    ref64, qry64 = reference.astype(np.float64), queries.astype(np.float64)
+    ref_d, _ = cKDTree(ref64).query(qry64, 1)
+    own = np.linalg.norm(ref64[idx] - qry64, axis=1)
+    tol = 1e-5 * (1 + np.abs(ref64).max())
+    np.testing.assert_allclose(own, ref_d, atol=tol)
+    np.testing.assert_allclose(dist, own, rtol=1e-5, atol=1e-5)
+    _, first, inverse = np.unique(reference, axis=0, return_index=True, return_inverse=True)
+    lowest_same = first[inverse.ravel()]
+    np.testing.assert_array_equal(lowest_same[idx], idx)
+    copies = np.bincount(inverse.ravel())[inverse.ravel()]
+    return int((copies[idx] > 1).sum())
+
+
+@pytest.mark.parametrize("kind", ["uniform", "clustered", "duplicated", "lattice"])
+def test_nearest_matches_kdtree(ti_arch, kind):
+    xyz = _clouds(ti_arch != "cpu")[kind].astype(np.float32)
+    rng = np.random.default_rng(11)
+    reference = xyz[::2]
+    # queries: the other half, copies of reference points (exact ties at distance 0 when the
+    # reference holds duplicates), and points off the cloud's extent
+    queries = np.concatenate([xyz[1::2], reference[:50], rng.random((20, 3)).astype(np.float32) * 200 - 100])
+    idx, dist = neighbors.nearest(reference, queries)
+    assert idx.shape == (len(queries),) and idx.dtype == np.int32 and dist.dtype == np.float32
+    ties = assert_nearest_matches_kdtree(reference, queries, idx, dist)
+    print(f"{kind}: {ties} queries whose nearest point is duplicated (lowest index returned)")
+    if kind == "duplicated":
+        assert ties > 0
+    # repeated calls and another cell size give the same answer
+    again = neighbors.nearest(reference, queries, cell_size=3.0)
+    np.testing.assert_array_equal(idx, again[0])
+
+
+def test_nearest_real_cloud(ti_arch, shared_data):
+    xyz = _real_cloud(shared_data, 8000 if ti_arch != "cpu" else 70840)
+    idx, dist = neighbors.nearest(xyz[::3], xyz[1::3])
+    assert_nearest_matches_kdtree(xyz[::3], xyz[1::3], idx, dist)
+
+
+def test_nearest_ndarrays_and_empty(ti_arch):
+    import taichi as ti
+
+    xyz = _clouds(True)["uniform"].astype(np.float32)
+    ref, qry = ti.ndarray(ti.f32, (750, 3)), ti.ndarray(ti.f32, (750, 3))
+    ref.from_numpy(np.ascontiguousarray(xyz[:750]))
+    qry.from_numpy(np.ascontiguousarray(xyz[750:1500]))
+    idx, dist = neighbors.nearest(ref, qry)
+    assert isinstance(idx, ti.Ndarray) and isinstance(dist, ti.Ndarray)
+    np.testing.assert_array_equal(idx.to_numpy(), neighbors.nearest(xyz[:750], xyz[750:1500])[0])
+    empty = neighbors.nearest(xyz, np.zeros((0, 3), np.float32))
+    assert empty[0].shape == (0,) and empty[1].shape == (0,)
+    with pytest.raises(ValueError, match="reference point set is empty"):
+        neighbors.nearest(np.zeros((0, 3), np.float32), xyz)
+    with pytest.raises(ValueError, match="queries must have shape"):
+        neighbors.nearest(xyz, xyz[:, :2])

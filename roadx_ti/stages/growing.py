@@ -195,22 +195,22 @@ def _absorb_enclosed(is_road, regions, neighbors, o):
     if dropped.any():
         pieces = lab.connected_components(neighbors, active=dropped.astype(np.uint8))
         group = np.where(dropped, n + pieces.astype(np.int64), group)
-    group = np.unique(group, return_inverse=True)[1].ravel()
+    group = np.unique(group, return_inverse=True)[1].ravel().astype(np.int32)
     n_groups = int(group.max()) + 1
     size = np.bincount(group, minlength=n_groups)
-    rows = np.repeat(np.arange(n, dtype=np.int64), neighbors.shape[1])
-    cols = neighbors.reshape(-1).astype(np.int64)
-    real = cols >= 0
-    rows, cols = rows[real], cols[real]
-    boundary = group[rows] != group[cols]
-    rows, cols = rows[boundary], cols[boundary]
-    total = np.bincount(group[rows], minlength=n_groups)
+    # boundary edges (graph edges between two groups) as (group of the point, neighbour index),
+    # taken from the (n, k) neighbour table in 32 bits without expanding it into edge lists
+    real = neighbors >= 0
+    boundary = real & (group[np.where(real, neighbors, 0)] != group[:, None])
+    row_group = np.broadcast_to(group[:, None], neighbors.shape)[boundary]
+    cols = neighbors[boundary]
+    total = np.bincount(row_group, minlength=n_groups)
     limit = o.absorb_max_size if o.absorb_max_size is not None else n
     is_road = is_road.copy()
     for _ in range(o.absorb_rounds):
         group_road = np.zeros(n_groups, bool)
         group_road[group[is_road]] = True
-        into = np.bincount(group[rows], weights=is_road[cols], minlength=n_groups)
+        into = np.bincount(row_group, weights=is_road[cols], minlength=n_groups)
         take = ~group_road & (total > 0) & (into >= o.absorb_enclosed * total) & (size <= limit)
         if not take.any():
             break
