@@ -105,3 +105,36 @@ def test_plane_distances_match_numpy(ti_arch):
     nd = ransac.plane_distances(as_ndarray(xyz), plane)
     assert is_ndarray(nd)
     np.testing.assert_array_equal(nd.to_numpy(), got)
+
+
+def test_search_on_the_active_points_alone_is_the_masked_search():
+    """The R3 stage searches the unmatched points alone: the same plane and inliers as a search
+    over all points with the others inactive (hypotheses and sample are drawn from the active
+    points in index order either way)."""
+    xyz, part = synthetic_scene(6, 30_000)
+    active = part != 0
+    masked = ransac.fit_plane(xyz, THRESHOLD, seed=3, active=active.astype(np.uint8), sample_size=4096)
+    alone = ransac.fit_plane(xyz[active], THRESHOLD, seed=3, sample_size=4096)
+    np.testing.assert_array_equal(masked.plane, alone.plane)
+    np.testing.assert_array_equal(np.flatnonzero(masked.inliers), np.flatnonzero(active)[alone.inliers])
+
+
+def test_stage_removes_walls_and_roofs_keeps_ground():
+    """R3 plane classes: the wall (Z class) and the roof 10 m up (XY class) are removed, the
+    ground plane is kept; clutter matches no plane."""
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.planes import RansacPlanes
+
+    xyz, part = synthetic_scene(7, 40_000)
+    stage = RansacPlanes({"distance_threshold": THRESHOLD, "min_inliers": 500, "max_planes": 5,
+                          "dh_max": 2.5, "ground_cell": 10.0})
+    result = stage.run(Cloud(xyz=xyz, origin=np.zeros(3)), StageContext(seed=0))
+    classes = {p["class"] for p in result.info["plane_list"]}
+    assert {"Z", "XY", "ground"} <= classes
+    assert result.keep[part == 0].mean() > 0.99           # ground kept
+    assert result.keep[part == 1].mean() < 0.02           # wall removed
+    assert result.keep[part == 2].mean() < 0.02           # roof removed
+    # deterministic: the same labels on a second run
+    again = stage.run(Cloud(xyz=xyz, origin=np.zeros(3)), StageContext(seed=0))
+    np.testing.assert_array_equal(result.keep, again.keep)

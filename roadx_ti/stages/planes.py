@@ -65,11 +65,16 @@ class RansacPlanes(Stage):
         planes = []
         cos_tilt = math.cos(math.radians(o.max_tilt_deg))
         for number in range(o.max_planes):
-            if unmatched.sum() < 3:
+            candidates = np.flatnonzero(unmatched)
+            if len(candidates) < 3:
                 break
-            fit = fit_plane(xyz, o.distance_threshold, hypotheses=o.hypotheses,
-                            seed=ctx.seed + number, active=unmatched.astype(np.uint8))
-            inliers = np.asarray(fit.inliers, bool) & unmatched
+            # the search runs on the unmatched points alone: the same hypotheses, sample and
+            # inliers as a search over all points with the matched ones inactive (both draw
+            # from the unmatched points in index order), with no pass over matched points
+            fit = fit_plane(xyz[candidates], o.distance_threshold, hypotheses=o.hypotheses,
+                            seed=ctx.seed + number)
+            inliers = np.zeros(cloud.n, bool)
+            inliers[candidates[np.asarray(fit.inliers, bool)]] = True
             if inliers.sum() <= o.min_inliers:
                 break
             normal_z = abs(float(fit.plane[2]))
