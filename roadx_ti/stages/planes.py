@@ -54,28 +54,27 @@ class RansacPlanes(Stage):
     Options = RansacOptions
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
-        from roadx_ti.kernels.grid_min import cell_minimum
         from roadx_ti.kernels.ransac import fit_plane
 
         o = self.options
         xyz = cloud.xyz
         height_above_ground = _height_above_local_minimum(xyz, o.ground_cell)
-        unmatched = np.ones(cloud.n, bool)
         keep = np.ones(cloud.n, bool)
         planes = []
         cos_tilt = math.cos(math.radians(o.max_tilt_deg))
+        # the search runs on the unmatched points alone (ascending indices, their coordinates
+        # shrinking with them): the same hypotheses, sample and inliers as a search over all
+        # points with the matched ones inactive, which draws from them in the same order
+        unmatched = np.arange(cloud.n)
+        unmatched_xyz = xyz
         for number in range(o.max_planes):
-            candidates = np.flatnonzero(unmatched)
-            if len(candidates) < 3:
+            if len(unmatched) < 3:
                 break
-            # the search runs on the unmatched points alone: the same hypotheses, sample and
-            # inliers as a search over all points with the matched ones inactive (both draw
-            # from the unmatched points in index order), with no pass over matched points
-            fit = fit_plane(xyz[candidates], o.distance_threshold, hypotheses=o.hypotheses,
+            fit = fit_plane(unmatched_xyz, o.distance_threshold, hypotheses=o.hypotheses,
                             seed=ctx.seed + number)
-            inliers = np.zeros(cloud.n, bool)
-            inliers[candidates[np.asarray(fit.inliers, bool)]] = True
-            if inliers.sum() <= o.min_inliers:
+            hit = np.asarray(fit.inliers, bool)
+            inliers = unmatched[hit]
+            if len(inliers) <= o.min_inliers:
                 break
             normal_z = abs(float(fit.plane[2]))
             median_height = float(np.median(height_above_ground[inliers]))
@@ -87,8 +86,8 @@ class RansacPlanes(Stage):
                 kind = "ground"
             if kind != "ground":
                 keep[inliers] = False
-            unmatched[inliers] = False
-            planes.append({"plane": [round(float(v), 6) for v in fit.plane], "points": int(inliers.sum()),
+            unmatched, unmatched_xyz = unmatched[~hit], unmatched_xyz[~hit]
+            planes.append({"plane": [round(float(v), 6) for v in fit.plane], "points": int(len(inliers)),
                            "class": kind, "median_height": round(median_height, 3)})
         info = {"planes": len(planes), "removed": int((~keep).sum()),
                 "by_class": {c: sum(p["points"] for p in planes if p["class"] == c) for c in ("Z", "XY", "ground")},
