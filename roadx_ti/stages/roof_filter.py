@@ -176,11 +176,11 @@ class RoofFilter(Stage):
                             "the minimum roof height test is skipped")
             keep_height = np.ones(count, bool)
         else:
-            keep_height = segment_medians(segment, np.asarray(height), count) >= o.min_roof_height \
-                if count else np.ones(0, bool)
+            median_height = segment_medians(segment, np.asarray(height), count)
+            keep_height = median_height >= o.min_roof_height
         if count and o.min_roof_width > 0 and height is not None:
             narrow = segment_widths(segment, cloud.xyz[:, :2], count) < o.min_roof_width
-            keep_width = ~(narrow & (segment_medians(segment, np.asarray(height), count) < o.narrow_max_height))
+            keep_width = ~(narrow & (median_height < o.narrow_max_height))
         kept = keep_area & keep_height & keep_width
         annexes = 0
         if o.annex_reach > 0 and count and kept.any():
