@@ -148,3 +148,24 @@ def test_point_counts():
     assert parse_point_count("1M") == 1_000_000 and parse_point_count("250k") == 250_000 and parse_point_count("1200") == 1200
     with pytest.raises(argparse.ArgumentTypeError):
         parse_point_count("lots")
+
+
+def test_a_later_run_replaces_the_rows_it_remeasured():
+    """Rendering several runs: a case measured again by a later run is shown from that run only."""
+    import copy
+    from pathlib import Path
+
+    runs_dir = Path(__file__).resolve().parents[1] / "benchmarks" / "runs"
+    first = json.loads(sorted(runs_dir.glob("bench-*.json"))[0].read_text())
+    row = next(r for r in first["rows"] if r["impl"] == "roadx_ti" and r["status"] == "ok")
+    later = copy.deepcopy(first)
+    later["meta"]["run_id"] = "later"
+    later["rows"] = [dict(row, median_s=123.456, mpts_per_s=0.00789)]
+    page = bench.render_markdown([first, later])
+    assert "## Run later" in page
+    details = page[page.index("## Details"):]
+    section = details[details.index(f"### {bench._stage_label(row['stage'], row['variant'])}\n"):]
+    section = section.split("\n### ")[0]
+    prefix = f"| {bench._fmt_points(row['points'])} | {row['backend']} | roadx_ti |"
+    mine = [line for line in section.splitlines() if line.startswith(prefix)]
+    assert len(mine) == 1 and "| 123 |" in mine[0] and "0.00789" in mine[0]
