@@ -18,7 +18,8 @@ Kernels for k <= SMALL_K, each keeping an ascending list of the k best in regist
   within reach; the few still unsettled (outliers, sparse regions) go to ``_knn_blocks``.
 * ``_knn_blocks``: one query per thread, shell by shell over blocks of 4x4x4 cells (64
   consecutive buckets: cheap to skip empty space) or, on GPUs, for every query over single
-  cells; blocks beyond the current k-th are skipped, a brute scan ends hopeless searches.
+  cells; blocks beyond the current k-th are skipped, a brute scan ends hopeless searches
+  (``_block_search``, which ``nearest`` also runs for the points of another set: k = 1).
 * larger k (``_knn_select``; SOR uses k = 500): selection by counting, with no per-thread array
   of k slots. The pass that fixes the ring also histograms the float bits of the distances just
   below the safe radius (32 bins in registers); further passes re-histogram inside the bin that
