@@ -242,6 +242,17 @@ def region_stats(labels, values=None):
     return ids, counts, means
 
 
+def boundary_edges(labels: np.ndarray, neighbors: np.ndarray):
+    """The graph edges (i, neighbors[i, k]) whose two end points carry different labels, both
+    >= 0, read from the (n, k) table in row-major order without expanding it into edge lists:
+    (label of i, neighbour index) as two 1-D arrays (host numpy)."""
+    real = neighbors >= 0
+    own = labels[:, None]
+    other = np.where(real, labels[np.where(real, neighbors, 0)], -1)
+    cut = real & (own >= 0) & (other >= 0) & (other != own)
+    return np.broadcast_to(own, neighbors.shape)[cut], neighbors[cut]
+
+
 def merge_regions(labels, neighbors, rgb, threshold, min_size=0):
     """Merge adjacent regions with similar mean colour, then drop small regions.
 
@@ -262,13 +273,9 @@ def merge_regions(labels, neighbors, rgb, threshold, min_size=0):
     r_count = len(ids)
 
     if nbr.size and r_count:
-        # region pairs across graph edges, from the (n, k) table (no expanded int64 edge lists)
-        real = nbr >= 0
-        rb = np.where(real, region[np.where(real, nbr, 0)], -1)
-        ra = region[:, None]
-        keep = (ra >= 0) & (rb >= 0) & (ra != rb)
-        ra = np.broadcast_to(ra, nbr.shape)[keep].astype(np.int64)
-        rb = rb[keep].astype(np.int64)
+        ra, other = boundary_edges(region, nbr)
+        ra = ra.astype(np.int64)
+        rb = region[other].astype(np.int64)
         lo = np.minimum(ra, rb)
         hi = np.maximum(ra, rb)
         pairs = np.unique(lo * r_count + hi)

@@ -194,3 +194,15 @@ def test_region_stats():
     np.testing.assert_array_equal(ids, [0, 3])
     np.testing.assert_array_equal(counts, [1, 3])
     np.testing.assert_allclose(means[:, 0], [4.0, 3.0])
+
+
+def test_boundary_edges_lists_edges_between_two_labels():
+    from roadx_ti.kernels.labels import boundary_edges
+
+    labels = np.array([0, 0, 1, -1, 2], np.int32)
+    neighbors = np.array([[1, 2], [0, -1], [0, 4], [2, 0], [3, 2]], np.int32)
+    own, other = boundary_edges(labels, neighbors)
+    # row-major over the table: 0->2, 2->0, 2->4, 4->2; edges within a label, to or from an
+    # unlabelled point (-1) and padding are left out
+    np.testing.assert_array_equal(own, [0, 1, 1, 2])
+    np.testing.assert_array_equal(other, [2, 0, 4, 2])

@@ -198,12 +198,8 @@ def _absorb_enclosed(is_road, regions, neighbors, o):
     group = np.unique(group, return_inverse=True)[1].ravel().astype(np.int32)
     n_groups = int(group.max()) + 1
     size = np.bincount(group, minlength=n_groups)
-    # boundary edges (graph edges between two groups) as (group of the point, neighbour index),
-    # taken from the (n, k) neighbour table in 32 bits without expanding it into edge lists
-    real = neighbors >= 0
-    boundary = real & (group[np.where(real, neighbors, 0)] != group[:, None])
-    row_group = np.broadcast_to(group[:, None], neighbors.shape)[boundary]
-    cols = neighbors[boundary]
+    # boundary edges (graph edges between two groups): (group of the point, neighbour index)
+    row_group, cols = lab.boundary_edges(group, neighbors)
     total = np.bincount(row_group, minlength=n_groups)
     limit = o.absorb_max_size if o.absorb_max_size is not None else n
     is_road = is_road.copy()
