@@ -104,12 +104,12 @@ def datasets(task: str, points: int, seeds=(0, 1, 2)):
 def _merged(paths):
     """One cloud of adjacent files (a common local origin: the floor of their lowest corner)."""
     from roadx_ti import io
-    from roadx_ti.tiling import concat_clouds
+    from roadx_ti.tiling import catalog, concat_clouds
 
-    headers = io.read_headers(paths)
-    origin = np.floor([min(h[1][0] for h in headers), min(h[1][1] for h in headers),
-                       min(h[3][0] for h in headers)])
-    return concat_clouds([io.read(p, origin=origin) for p in paths], origin)
+    files = catalog(paths)
+    origin = np.floor([min(f.bounds[0] for f in files), min(f.bounds[1] for f in files),
+                       min(f.z_range[0] for f in files)])
+    return concat_clouds([io.read(f.path, origin=origin) for f in files], origin)
 
 
 def evaluate(task: str, out: Path, points: int) -> list[dict]:

@@ -12,9 +12,10 @@ warning says so). LiDAR returns (when the input has them): an earlier return of 
 pulse whose curvature is not below returns_exempt_curvature (foliage: the laser went on through
 it; roof interiors return once, roof edges are planar) joins no growth edge; this is the
 vegetation cue of inputs without colour (on the six IGN Lidar HD tiles without colour it raised
-the mean kappa from 0.82 to 0.88, five tiles up and one 0.949 -> 0.941; benchmarks/accuracy). Writes point_data 'roof_segment'
-(int32, compact ids, -1 = none) and, with the colour rule or returns on, 'vegetation' (uint8:
-COM > com_threshold, or such a foliage return) for roof_filter's annex and footprint tests.
+the mean kappa from 0.82 to 0.88, five tiles up and one 0.949 -> 0.941; benchmarks/accuracy).
+Writes point_data 'roof_segment' (int32, compact ids, -1 = none) and, with the colour rule or
+returns on, 'vegetation' (uint8: COM > com_threshold, or such a foliage return) for roof_filter's
+annex and footprint tests.
 """
 from __future__ import annotations
 
