@@ -10,7 +10,7 @@ neighbourhoods, where closed-form cubic solutions lose the small eigenvalue.
 import numpy as np
 import taichi as ti
 
-from .common import is_ndarray, kernel_array, length, ndarray
+from .common import kernel_array, length, like_input, output_array
 
 _JACOBI_SWEEPS = 8
 
@@ -124,12 +124,10 @@ def covariance_features(xyz, knn_indices) -> dict:
     n = length(pts)
     if len(nbr.shape) != 2 or int(nbr.shape[0]) != n:
         raise ValueError(f"knn_indices must have shape (n, k) with n={n}, got {tuple(nbr.shape)}")
-    out = {"normal": ndarray(ti.f32, (n, 3)), "eigenvalues": ndarray(ti.f32, (n, 3)),
-           "curvature": ndarray(ti.f32, (n,)), "max_distance": ndarray(ti.f32, (n,)),
-           "extent": ndarray(ti.f32, (n, 3))}
+    shapes = {"normal": (n, 3), "eigenvalues": (n, 3), "curvature": (n,), "max_distance": (n,),
+              "extent": (n, 3)}
+    out = {name: output_array(ti.f32, shape, xyz) for name, shape in shapes.items()}
     if n:
         _covariance_features(pts, nbr, out["normal"], out["eigenvalues"], out["curvature"],
                              out["max_distance"], out["extent"])
-    if not is_ndarray(xyz):
-        out = {name: a.to_numpy() for name, a in out.items()}
-    return out
+    return {name: like_input(a, xyz) for name, a in out.items()}

@@ -8,7 +8,7 @@ the result does not depend on thread timing and needs no float atomics.
 import numpy as np
 import taichi as ti
 
-from .common import INT32_MAX, f32_order_key, kernel_array, like_input, ndarray
+from .common import INT32_MAX, f32_order_key, kernel_array, like_input, ndarray, output_array
 
 
 @ti.kernel
@@ -89,10 +89,10 @@ def cell_minimum(xyz, step: float):
     n_cells = n_cols * n_rows
     if n_cells >= INT32_MAX:
         raise ValueError(f"a {n_cols} x {n_rows} grid at step {step} m exceeds 32-bit indexing; tile the input")
-    cell = ndarray(ti.i32, (n,))
+    cell = output_array(ti.i32, (n,), xyz)
     _cell_of_point(pts, cell, float(x_min), float(y_min), float(step), n_cols)
     cell_min_z_key = ndarray(ti.i32, (n_cells,))
-    cell_lowest = ndarray(ti.i32, (n_cells,))
+    cell_lowest = output_array(ti.i32, (n_cells,), xyz)
     _fill_i32(cell_min_z_key, INT32_MAX)
     _fill_i32(cell_lowest, INT32_MAX)
     _cell_min_z_key(pts, cell, cell_min_z_key)
@@ -115,7 +115,7 @@ def slope_filter(xyz, step: float, slope_max: float, dh_max: float):
     pts = kernel_array(xyz, "float32")
     n = int(pts.shape[0])
     cell, cell_lowest, _ = cell_minimum(pts, step)
-    height = ndarray(ti.f32, (n,))
-    keep = ndarray(ti.u8, (n,))
+    height = output_array(ti.f32, (n,), xyz)
+    keep = output_array(ti.u8, (n,), xyz)
     _slope_test(pts, cell, cell_lowest, height, keep, float(slope_max), float(dh_max))
     return like_input(keep, xyz), like_input(height, xyz)

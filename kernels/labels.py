@@ -19,7 +19,7 @@ then unites regions on the device with the same union-find over an edge list.
 import numpy as np
 import taichi as ti
 
-from .common import as_ndarray, is_ndarray, like_input, ndarray, to_numpy
+from .common import as_ndarray, is_ndarray, kernel_array, like_input, ndarray, output_array, to_numpy
 
 # Verification rounds never exceed a handful; this bound only guards against a logic error.
 _MAX_ROUNDS = 64
@@ -156,11 +156,11 @@ def _components(neighbors, edge_ok=None, active=None):
         if active is not None:
             out[to_numpy(active) == 0] = -1
         return out, 0
-    nbr = as_ndarray(neighbors, "int32")
-    parent = ndarray(ti.i32, (n,))
-    act = as_ndarray(active, "uint8") if active is not None else ndarray(ti.u8, (1,))
+    nbr = kernel_array(neighbors, "int32")
+    parent = output_array(ti.i32, (n,), neighbors)
+    act = kernel_array(active, "uint8") if active is not None else ndarray(ti.u8, (1,))
     _init_parent(act, int(active is not None), parent)
-    ok = as_ndarray(edge_ok, "uint8") if edge_ok is not None else ndarray(ti.u8, (1, 1))
+    ok = kernel_array(edge_ok, "uint8") if edge_ok is not None else ndarray(ti.u8, (1, 1))
     use_ok = int(edge_ok is not None)
     rounds = _union_rounds(parent, lambda changed: _hook_neighbors(nbr, ok, use_ok, parent, changed))
     return parent, rounds
@@ -175,23 +175,21 @@ def connected_components(neighbors, edge_ok=None, active=None):
     active point's component, -1 for inactive points (numpy or ndarray, as ``neighbors``).
     """
     parent, _ = _components(neighbors, edge_ok, active)
-    if not is_ndarray(parent):
-        return parent
     return like_input(parent, neighbors)
 
 
 def union_edge_list(n, src, dst):
     """Components of ``n`` nodes joined by the undirected edges (src[e], dst[e]) (int32 numpy).
     Returns int32 numpy (n,): each node's smallest connected node index."""
-    parent = ndarray(ti.i32, (n,))
     if n == 0:
-        return parent.to_numpy()
+        return np.zeros(0, np.int32)
+    parent = output_array(ti.i32, (n,), src)
     _init_parent(ndarray(ti.u8, (1,)), 0, parent)
     if len(src):
-        s = as_ndarray(src, "int32")
-        d = as_ndarray(dst, "int32")
+        s = kernel_array(src, "int32")
+        d = kernel_array(dst, "int32")
         _union_rounds(parent, lambda changed: _hook_edge_list(s, d, parent, changed))
-    return parent.to_numpy()
+    return to_numpy(parent)
 
 
 def color_edges(neighbors, rgb, threshold):
@@ -199,10 +197,10 @@ def color_edges(neighbors, rgb, threshold):
     two points is below ``threshold`` (PCL RegionGrowingRGB's point colour threshold)."""
     if int(neighbors.shape[0]) == 0 or int(neighbors.shape[1]) == 0:
         return np.zeros(tuple(neighbors.shape), np.uint8)
-    nbr = as_ndarray(neighbors, "int32")
-    out = ndarray(ti.u8, tuple(nbr.shape))
+    nbr = kernel_array(neighbors, "int32")
+    out = output_array(ti.u8, tuple(nbr.shape), neighbors)
     t = np.float32(threshold)
-    _color_edges(nbr, as_ndarray(rgb, "float32"), float(t * t), out)
+    _color_edges(nbr, kernel_array(rgb, "float32"), float(t * t), out)
     return like_input(out, neighbors)
 
 

@@ -33,7 +33,7 @@ Kernels for k <= SMALL_K, each keeping an ascending list of the k best in regist
 import numpy as np
 import taichi as ti
 
-from .common import host_memory_backend, kernel_array, length, like_input, ndarray
+from .common import host_memory_backend, kernel_array, length, like_input, ndarray, output_array
 from .grid import Grid, build_grid, build_grid_into, cell_hash, cell_of, compact_mask, scratch
 from .scan import exclusive_scan_into
 
@@ -778,8 +778,8 @@ def knn(xyz, k: int, *, grid: Grid = None, cell_size: float = None):
     k = _check_k(k, n)
     pts = kernel_array(xyz, np.float32)
     grid = _prepare(pts, k, grid, cell_size, default_points_per_cell(k))
-    out_idx = ndarray(ti.i32, (n, k))
-    out_dist = ndarray(ti.f32, (n, k))
+    out_idx = output_array(ti.i32, (n, k), xyz)
+    out_dist = output_array(ti.f32, (n, k), xyz)
     dummy = ndarray(ti.f32, (1,))
     _run_scan(grid, k, out_idx, out_dist, dummy, True, 0)
     return like_input(out_idx, xyz), like_input(out_dist, xyz)
@@ -799,7 +799,7 @@ def knn_mean_distance(xyz, k: int, *, include_self: bool = False, grid: Grid = N
     others = _check_k(others, n)
     pts = kernel_array(xyz, np.float32)
     grid = _prepare(pts, others, grid, cell_size, default_points_per_cell(others))
-    out_mean = ndarray(ti.f32, (n,))
+    out_mean = output_array(ti.f32, (n,), xyz)
     dummy_i = ndarray(ti.i32, (1, 1))
     dummy_f = ndarray(ti.f32, (1, 1))
     _run_scan(grid, others, dummy_i, dummy_f, out_mean, False, 1 if include_self else 0)
@@ -826,8 +826,8 @@ def nearest(reference, queries, *, grid: Grid = None, cell_size: float = None):
     ref = kernel_array(reference, np.float32)
     grid = _prepare(ref, 1, grid, cell_size, NEAREST_POINTS_PER_CELL)
     pts = kernel_array(queries, np.float32)
-    out_idx = ndarray(ti.i32, (m,))
-    out_dist = ndarray(ti.f32, (m,))
+    out_idx = output_array(ti.i32, (m,), queries)
+    out_dist = output_array(ti.f32, (m,), queries)
     ox, oy, oz = grid.origin
     _nearest_of(pts, grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, grid.table_mask,
                 ox, oy, oz, grid.cell_size, grid.inv_cell, _brute_cells(grid.n), 0, out_idx, out_dist)

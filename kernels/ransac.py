@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import taichi as ti
 
-from .common import as_ndarray, kernel_array, like_input, ndarray, to_numpy
+from .common import as_ndarray, kernel_array, like_input, ndarray, output_array, to_numpy
 
 SAMPLE_SIZE = 1 << 16   # points every hypothesis is scored on in the preemptive pass
 FINALISTS = 8           # hypotheses scored on all points
@@ -148,8 +148,8 @@ def plane_distances(xyz, plane):
     if n == 0:
         return np.zeros(0, np.float32)
     p = _unit_plane(plane)
-    out = ndarray(ti.f32, (n,))
-    _distances(as_ndarray(xyz, "float32"), *(float(v) for v in p), out)
+    out = output_array(ti.f32, (n,), xyz)
+    _distances(kernel_array(xyz, "float32"), *(float(v) for v in p), out)
     return like_input(out, xyz)
 
 

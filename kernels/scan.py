@@ -11,7 +11,7 @@ import numpy as np
 
 import taichi as ti
 
-from .common import as_ndarray, like_input, ndarray
+from .common import kernel_array, like_input, ndarray, output_array
 
 
 @ti.kernel
@@ -73,7 +73,7 @@ def exclusive_scan(values):
     """Exclusive prefix sum of an int32 array (numpy or ndarray); returns (prefix, total)."""
     if int(values.shape[0]) == 0:
         return (np.zeros(0, np.int32) if not hasattr(values, "to_numpy") else values), 0
-    src = as_ndarray(values, "int32")
-    out = ndarray(ti.i32, (int(src.shape[0]),))
+    src = kernel_array(values, "int32")
+    out = output_array(ti.i32, (int(src.shape[0]),), values)
     total = exclusive_scan_into(src, out)
     return like_input(out, values), total

@@ -44,7 +44,8 @@ import math
 import numpy as np
 import taichi as ti
 
-from .common import INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, length, like_input, ndarray
+from .common import (INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, kernel_array, length, like_input,
+                     ndarray, output_array)
 
 
 def required_planar_neighbours(plane_coef: float, k: int) -> int:
@@ -97,13 +98,13 @@ def seed_constraints(knn_indices, curvature, max_distance, extent, *, curvature_
     max_distance (n,) in m, extent (n, 3) in m. A threshold of None switches its constraint off
     (its mask is all ones): curvature_max (with plane_coef in [0, 1]), r_max (m), alpha.
     """
-    knn = as_ndarray(knn_indices, "int32")
-    curv = as_ndarray(curvature, "float32")
+    knn = kernel_array(knn_indices, "int32")
+    curv = kernel_array(curvature, "float32")
     n = length(curv)
     k = int(knn.shape[1]) if len(knn.shape) == 2 else 0
-    out = {name: ndarray(ti.u8, (n,)) for name in ("planar", "compact", "gradient", "seed")}
+    out = {name: output_array(ti.u8, (n,), curvature) for name in ("planar", "compact", "gradient", "seed")}
     if n:
-        _seed_constraints(knn, curv, as_ndarray(max_distance, "float32"), as_ndarray(extent, "float32"),
+        _seed_constraints(knn, curv, kernel_array(max_distance, "float32"), kernel_array(extent, "float32"),
                           int(curvature_max is not None),
                           float(curvature_max if curvature_max is not None else 0.0),
                           required_planar_neighbours(plane_coef, k),
@@ -145,16 +146,16 @@ def roof_growth_edges(knn_indices, normal, *, angle_max_deg: float, active=None,
     vegetation (n,) uint8. The colour rule is on only when rgb, vegetation and color_max are all
     given. active (n,) uint8, default all.
     """
-    knn = as_ndarray(knn_indices, "int32")
+    knn = kernel_array(knn_indices, "int32")
     n, k = int(knn.shape[0]), int(knn.shape[1])
     use_color = rgb is not None and vegetation is not None and color_max is not None
-    act = as_ndarray(np.ones(n, np.uint8) if active is None else active, "uint8")
-    rgb_nd = as_ndarray(rgb, "float32") if use_color else as_ndarray(np.zeros((1, 3), np.float32))
-    veg_nd = as_ndarray(vegetation, "uint8") if use_color else as_ndarray(np.zeros(1, np.uint8))
-    edge_ok = ndarray(ti.u8, (n, k))
+    act = kernel_array(np.ones(n, np.uint8) if active is None else active, "uint8")
+    rgb_nd = kernel_array(rgb, "float32") if use_color else as_ndarray(np.zeros((1, 3), np.float32))
+    veg_nd = kernel_array(vegetation, "uint8") if use_color else as_ndarray(np.zeros(1, np.uint8))
+    edge_ok = output_array(ti.u8, (n, k), knn_indices)
     if n and k:
         cos_max = float(np.float32(math.cos(math.radians(angle_max_deg))))
-        _growth_edges(knn, as_ndarray(normal, "float32"), act, rgb_nd, veg_nd, cos_max,
+        _growth_edges(knn, kernel_array(normal, "float32"), act, rgb_nd, veg_nd, cos_max,
                       int(use_color), float(color_max) ** 2 if use_color else 0.0, edge_ok)
     return like_input(edge_ok, knn_indices)
 
@@ -240,25 +241,25 @@ def grow_roof_segments(knn_indices, edge_ok, seed, *, curvature=None, expand_cur
     """
     from .labels import connected_components
 
-    knn = as_ndarray(knn_indices, "int32")
+    if int(knn_indices.shape[0]) == 0:
+        return np.zeros(0, np.int32)
+    knn = kernel_array(knn_indices, "int32")
     n = int(knn.shape[0])
-    seed_nd = as_ndarray(seed, "uint8")
-    act = as_ndarray(np.ones(n, np.uint8) if active is None else active, "uint8")
+    seed_nd = kernel_array(seed, "uint8")
+    act = kernel_array(np.ones(n, np.uint8) if active is None else active, "uint8")
     use_curv = curvature is not None and expand_curvature_max is not None
-    curv = as_ndarray(curvature, "float32") if use_curv else as_ndarray(np.zeros(max(n, 1), np.float32))
-    label = ndarray(ti.i32, (n,))
-    if n == 0:
-        return like_input(label, knn_indices)
+    curv = kernel_array(curvature, "float32") if use_curv else as_ndarray(np.zeros(max(n, 1), np.float32))
+    edges = kernel_array(edge_ok, "uint8")
+    label = output_array(ti.i32, (n,), knn_indices)
     expandable = ndarray(ti.u8, (n,))
     _expandable(curv, seed_nd, act, int(use_curv), float(expand_curvature_max or 0.0), expandable)
-    component = as_ndarray(connected_components(knn, edge_ok=as_ndarray(edge_ok, "uint8"),
-                                                active=expandable), "int32")
+    component = kernel_array(connected_components(knn, edge_ok=edges, active=expandable), "int32")
     seeded = ndarray(ti.u8, (n,))
     seeded.fill(0)
     _mark_seeded(component, seed_nd, seeded)
     core = ndarray(ti.i32, (n,))
     _roof_cores(component, seeded, expandable, act, core, label)
-    _attach_leaves(knn, as_ndarray(edge_ok, "uint8"), core, expandable, act, label)
+    _attach_leaves(knn, edges, core, expandable, act, label)
     _unattached_to_none(label)
     return like_input(label, knn_indices)
 
@@ -367,8 +368,8 @@ def attach_to_footprints(xyz, segment, off_surface_ok=None, eligible=None, *, ce
     """
     if cell <= 0:
         raise ValueError(f"cell must be > 0, got {cell}")
-    pts = as_ndarray(xyz, "float32")
-    seg = as_ndarray(segment, "int32")
+    pts = kernel_array(xyz, "float32")
+    seg = kernel_array(segment, "int32")
     n = length(seg)
     out = ndarray(ti.i32, (n,))
     seg_np = seg.to_numpy() if hasattr(seg, "to_numpy") else np.asarray(seg)

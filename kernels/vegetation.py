@@ -30,7 +30,7 @@ Zero denominators (documented choices):
 
 import taichi as ti
 
-from .common import as_ndarray, length, like_input, ndarray
+from .common import kernel_array, length, like_input, output_array
 
 VEG_CHROMA_FLOOR = 0.01
 # default vegetation threshold on COM (points with COM > threshold are vegetation-coloured),
@@ -73,8 +73,8 @@ def _threshold_above(values: ti.types.ndarray(dtype=ti.f32, ndim=1), threshold: 
 def com_index(rgb):
     """COM per point (float32, (n,)) from colour (n, 3) in any unit (8-bit, 16-bit, 0..1).
     Higher = more vegetation (see the module docstring for measured values)."""
-    src = as_ndarray(rgb, "float32")
-    com = ndarray(ti.f32, (length(src),))
+    src = kernel_array(rgb, "float32")
+    com = output_array(ti.f32, (length(src),), rgb)
     if length(src):
         _com_index(src, com)
     return like_input(com, rgb)
@@ -82,8 +82,8 @@ def com_index(rgb):
 
 def vegetation_mask(rgb, threshold: float = DEFAULT_COM_THRESHOLD):
     """uint8 (n,): 1 where the point is vegetation-coloured (COM > threshold), else 0."""
-    com = as_ndarray(com_index(as_ndarray(rgb, "float32")))
-    mask = ndarray(ti.u8, (length(com),))
+    com = kernel_array(com_index(rgb), "float32")
+    mask = output_array(ti.u8, (length(com),), rgb)
     if length(com):
         _threshold_above(com, float(threshold), mask)
     return like_input(mask, rgb)
