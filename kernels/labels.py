@@ -148,8 +148,8 @@ def _union_rounds(parent, hook) -> int:
 
 def _components(neighbors, edge_ok=None, active=None):
     """connected_components returning (labels, rounds), for tests and callers that want to
-    see convergence. Labels come back as an ndarray, or as numpy for an input with no edge
-    slots (Taichi has no empty ndarrays)."""
+    see convergence. Labels come back as numpy for numpy ``neighbors`` on the CPU backend and
+    for an input with no edge slots (Taichi has no empty ndarrays), else as an ndarray."""
     n, k = int(neighbors.shape[0]), int(neighbors.shape[1])
     if n == 0 or k == 0:
         out = np.arange(n, dtype=np.int32)
