@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-import taichi as ti
+from .taichi_compat import cpu_threads, ti
 
 from .common import (as_ndarray, f32_order_key, f32_from_order_key, host_memory_backend,
                      kernel_array, length, ndarray, to_numpy)
@@ -635,7 +635,7 @@ def _serial_simulation(cells: int) -> bool:
     saves less than its five synchronised tasks per iteration cost (measured on 2 cores)."""
     if not host_memory_backend():
         return False
-    return cells <= SERIAL_CELLS or ti.lang.impl.current_cfg().cpu_max_num_threads <= 2
+    return cells <= SERIAL_CELLS or cpu_threads() <= 2
 
 
 def _point_output(dtype, n):

@@ -8,7 +8,7 @@ results are returned as ndarrays, so an embedding pipeline never round-trips thr
 """
 
 import numpy as np
-import taichi as ti
+from .taichi_compat import CPU_ARCHS, NDARRAY_TYPE, current_arch, ti
 
 _NP_TO_TI = {
     np.dtype(np.float32): ti.f32,
@@ -27,7 +27,7 @@ INT32_MAX = 2**31 - 1
 
 
 def is_ndarray(a) -> bool:
-    return isinstance(a, ti.lang._ndarray.Ndarray)
+    return isinstance(a, NDARRAY_TYPE)
 
 
 def ndarray(dtype, shape):
@@ -52,7 +52,7 @@ def as_ndarray(a, dtype=None):
 def host_memory_backend() -> bool:
     """True when kernels run on the host CPU (x64, arm64), where numpy arrays are kernel
     arguments in place: Taichi passes their pointer, no copy."""
-    return ti.lang.impl.current_cfg().arch in (ti.x64, ti.arm64)
+    return current_arch() in CPU_ARCHS
 
 
 def kernel_array(a, dtype=None):

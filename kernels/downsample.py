@@ -4,7 +4,7 @@ Point j of the output is input point floor(j * n / m) (METHODS.md R1). The produ
 2^31, so the index is computed in 64-bit integers (CPU, CUDA and Vulkan with shaderInt64).
 """
 import numpy as np
-import taichi as ti
+from .taichi_compat import ti
 
 from .common import as_ndarray, is_ndarray, like_input, ndarray
 

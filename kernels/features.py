@@ -8,7 +8,7 @@ neighbourhoods, where closed-form cubic solutions lose the small eigenvalue.
 """
 
 import numpy as np
-import taichi as ti
+from .taichi_compat import ti
 
 from .common import kernel_array, length, like_input, output_array
 

@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import taichi as ti
+from .taichi_compat import runtime_program, ti
 
 from .common import INT32_MAX, f32_order_key, is_ndarray, kernel_array, length, ndarray
 from .scan import exclusive_scan_into
@@ -230,7 +230,7 @@ def scratch(name: str, dtype, shape):
     page faults on repeated calls of the same size. Never hand one to a caller: the next call
     with the same name overwrites it. Contents are undefined (``fill`` what must start at 0).
     A new Taichi runtime (ti.reset / ti.init) drops the cache."""
-    prog = ti.lang.impl.get_runtime().prog
+    prog = runtime_program()
     if _SCRATCH_OWNER[0] is not prog:
         _SCRATCH.clear()
         _SCRATCH_OWNER[0] = prog

@@ -6,7 +6,7 @@ cell is found with integer atomics on an order-preserving encoding of z (ties: l
 the result does not depend on thread timing and needs no float atomics.
 """
 import numpy as np
-import taichi as ti
+from .taichi_compat import ti
 
 from .common import INT32_MAX, f32_order_key, kernel_array, like_input, ndarray, output_array
 

@@ -17,7 +17,7 @@ then unites regions on the device with the same union-find over an edge list.
 """
 
 import numpy as np
-import taichi as ti
+from .taichi_compat import ti
 
 from .common import as_ndarray, is_ndarray, kernel_array, like_input, ndarray, output_array, to_numpy
 

@@ -31,7 +31,7 @@ Kernels for k <= SMALL_K, each keeping an ascending list of the k best in regist
 """
 
 import numpy as np
-import taichi as ti
+from .taichi_compat import ti
 
 from .common import host_memory_backend, kernel_array, length, like_input, ndarray, output_array
 from .grid import Grid, build_grid, build_grid_into, cell_hash, cell_of, compact_mask, scratch

@@ -12,7 +12,7 @@ integer atomics of per-thread partial counts, so every result is independent of 
 from dataclasses import dataclass
 
 import numpy as np
-import taichi as ti
+from .taichi_compat import ti
 
 from .common import as_ndarray, kernel_array, like_input, ndarray, output_array, to_numpy
 

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-import taichi as ti
+from .taichi_compat import ti
 
 from .common import kernel_array, like_input, ndarray, output_array
 

@@ -42,7 +42,7 @@ result does not depend on order (one pass, no chains).
 import math
 
 import numpy as np
-import taichi as ti
+from .taichi_compat import ti
 
 from .common import (INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, kernel_array, length, like_input,
                      ndarray, output_array)

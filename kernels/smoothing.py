@@ -6,7 +6,7 @@ result is bit-identical from run to run (no atomics).
 """
 
 import numpy as np
-import taichi as ti
+from .taichi_compat import ti
 
 from .common import as_ndarray, is_ndarray, kernel_array, like_input, ndarray, to_numpy
 

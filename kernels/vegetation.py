@@ -28,7 +28,7 @@ Zero denominators (documented choices):
   VEG = 1 / 0.01 = 100 instead of a division by zero.
 """
 
-import taichi as ti
+from .taichi_compat import ti
 
 from .common import kernel_array, length, like_input, output_array
 

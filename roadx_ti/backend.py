@@ -12,8 +12,8 @@ import logging
 import os
 import sys
 
-import taichi as ti
-from taichi.lang import impl as _ti_impl
+from roadx_ti.kernels import taichi_compat
+from roadx_ti.kernels.taichi_compat import ti
 
 log = logging.getLogger("roadx_ti.backend")
 
@@ -28,14 +28,14 @@ class BackendError(RuntimeError):
 
 def is_initialized() -> bool:
     """True when a Taichi runtime exists (started by roadx_ti or by the host program)."""
-    return _ti_impl.get_runtime().prog is not None
+    return taichi_compat.is_initialized()
 
 
 def current_arch() -> str:
     """Name of the arch in use: 'cpu', 'vulkan', 'cuda', 'metal', ... ('' when not initialised)."""
     if not is_initialized():
         return ""
-    name = _ti_impl.current_cfg().arch.name
+    name = taichi_compat.current_arch().name
     return "cpu" if name in ("x64", "arm64") else name
 
 
@@ -64,7 +64,7 @@ def _auto_candidates() -> list[str]:
 
 
 def init(backend: str = "auto", *, threads: int | None = None, debug: bool = False,
-         offline_cache: bool = True) -> str:
+         offline_cache: bool = True, fast_math: bool = False) -> str:
     """Start Taichi on ``backend`` unless a runtime already exists; return the arch in use.
 
     ``auto`` tries cuda, then metal (macOS) or vulkan (when a hardware GPU is present), then cpu.
@@ -77,7 +77,9 @@ def init(backend: str = "auto", *, threads: int | None = None, debug: bool = Fal
         log.info("Taichi already initialised by the host: using arch %s", arch)
         return arch
     candidates = _auto_candidates() if backend == "auto" else [backend]
-    kwargs = dict(offline_cache=offline_cache, debug=debug, log_level=ti.WARN,
+    # fast_math off: LLVM may then not contract or reorder float expressions, so taichi 1.7.4
+    # (LLVM 15) and taichi-forge (LLVM 20) compute the same bits (curvature, plane distances)
+    kwargs = dict(offline_cache=offline_cache, debug=debug, log_level=ti.WARN, fast_math=fast_math,
                   default_ip=ti.i32, default_fp=ti.f32)
     if threads:
         kwargs["cpu_max_num_threads"] = int(threads)

@@ -520,14 +520,14 @@ def pipeline_call(scene, config: str, pipeline: str):
 
 
 def _sync():
-    import taichi as ti
+    from roadx_ti.kernels.taichi_compat import ti
     ti.sync()
 
 
 def _taichi_threads(backend: str):
     if backend == "cpu":
-        from taichi.lang import impl
-        return int(impl.current_cfg().cpu_max_num_threads)
+        from roadx_ti.kernels.taichi_compat import cpu_threads
+        return cpu_threads()
     if backend == "vulkan":   # lavapipe runs compute on LP_NUM_THREADS threads (default: all cores)
         return int(os.environ.get("LP_NUM_THREADS") or os.cpu_count() or 1)
     return None

@@ -48,6 +48,13 @@ def _runtime_per_test(request):
     yield
 
 
+def pytest_collection_modifyitems(config, items):
+    """Tests that run kernels on ti_arch are the 'kernel' tests (also run under taichi-forge)."""
+    for item in items:
+        if "ti_arch" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.kernel)
+
+
 @pytest.fixture(scope="session")
 def shared_data():
     if not SHARED_DATA.is_dir():

@@ -5,12 +5,14 @@ import textwrap
 
 import pytest
 
+from roadx_ti.kernels.taichi_compat import DISTRIBUTION
 from tests.conftest import KERNEL_BACKENDS
 
 HOST_PROGRAM = textwrap.dedent("""
+    import importlib
     import sys
     import numpy as np
-    import taichi as ti
+    ti = importlib.import_module(sys.argv[2])     # the host's own Taichi (taichi or taichi_forge)
 
     ti.init(arch=getattr(ti, sys.argv[1]), offline_cache=False)          # the host owns the runtime
 
@@ -41,10 +43,11 @@ HOST_PROGRAM = textwrap.dedent("""
 """)
 
 
+@pytest.mark.kernel
 @pytest.mark.parametrize("arch", KERNEL_BACKENDS)
 def test_host_program_owns_runtime_and_ndarrays(arch):
     # a fresh interpreter: this test session already owns a Taichi runtime
-    proc = subprocess.run([sys.executable, "-c", HOST_PROGRAM, arch], capture_output=True, text=True,
+    proc = subprocess.run([sys.executable, "-c", HOST_PROGRAM, arch, DISTRIBUTION], capture_output=True, text=True,
                           timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "EMBEDDED-OK" in proc.stdout

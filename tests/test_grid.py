@@ -93,7 +93,7 @@ def test_voxel_downsample_matches_numpy(ti_arch, voxel):
 
 
 def test_voxel_downsample_ndarray_in_ndarray_out(ti_arch):
-    import taichi as ti
+    from roadx_ti.kernels.taichi_compat import ti
     xyz = np.random.default_rng(0).random((500, 3)).astype(np.float32)
     arr = ti.ndarray(ti.f32, (500, 3))
     arr.from_numpy(xyz)

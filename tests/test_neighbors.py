@@ -191,7 +191,7 @@ def test_nearest_real_cloud(ti_arch, shared_data):
 
 
 def test_nearest_ndarrays_and_empty(ti_arch):
-    import taichi as ti
+    from roadx_ti.kernels.taichi_compat import ti
 
     xyz = _clouds(True)["uniform"].astype(np.float32)
     ref, qry = ti.ndarray(ti.f32, (750, 3)), ti.ndarray(ti.f32, (750, 3))

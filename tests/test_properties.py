@@ -15,7 +15,7 @@ shapes (duplicates, collinear, all identical, lattices, tiny n) rather than floa
 
 import numpy as np
 import pytest
-import taichi as ti
+from roadx_ti.kernels.taichi_compat import ti
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 

@@ -325,7 +325,7 @@ def test_attach_to_footprints_equals_reference(ti_arch, seed):
 
 
 def test_attach_to_footprints_on_taichi_ndarrays_and_empty(ti_arch):
-    import taichi as ti
+    from roadx_ti.kernels.taichi_compat import ti
     xyz, segment, off_ok, eligible = footprint_scene(2)
     want = seeds.attach_to_footprints(xyz, segment, off_ok, eligible)
     nd = ti.ndarray(ti.f32, xyz.shape)
