@@ -58,7 +58,7 @@ def _parser() -> argparse.ArgumentParser:
     i.add_argument("path")
 
     s = sub.add_parser("synth", help="write a synthetic scene with truth classes")
-    s.add_argument("--kind", required=True, choices=["uav-road", "als-roof"])
+    s.add_argument("--kind", required=True, choices=["uav-road", "uav-road-v1", "als-roof"])
     s.add_argument("--points", required=True, type=parse_point_count)
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("-o", "--output", required=True)
@@ -198,6 +198,7 @@ def cmd_run(args) -> int:
         "target_class": target, "target_points": int((result.classification == target).sum()),
         "roadx_label": {"0": "reached the last stage"} | {str(r["index"]): f"removed by {r['stage']}"
                                                          for r in result.stages},
+        "estimates": result.estimates,
         "stages": result.stages,
     }
     if truth is not None:
