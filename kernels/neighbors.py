@@ -401,8 +401,9 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                 out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.template()):
     """k <= SMALL_K, one query per thread for the points at sorted positions ``queries``
     (``_block_search``). ``block_bits`` 2: blocks of 4x4x4 cells (one contiguous range of 64
-    buckets, ``grid.cell_hash``), for the sparse regions and outliers the cell kernel leaves;
-    0: single cells (every query on GPUs)."""
+    buckets, ``grid.cell_hash``): the sparse regions and outliers the cell kernel leaves on CPUs,
+    every query on GPUs. (With single cells, an isolated outlier walked so many empty shells that
+    it reached the scan of every point, whose long invocation lavapipe cut short: wrong rows.)"""
     for qs in range(queries.shape[0]):
         s = queries[qs]
         q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
@@ -742,7 +743,8 @@ def _run_scan(grid: Grid, k: int, out_idx, out_dist, out_mean, emit_rows: bool, 
         queries = scratch("knn.all_queries", ti.i32, (grid.n,))
         _iota(queries)
         _knn_blocks(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, queries,
-                    *geometry, _brute_cells(grid.n), self_slots, 0, out_idx, out_dist, out_mean, emit_rows)
+                    *geometry, _brute_cells(grid.n), self_slots, _BLOCK_BITS, out_idx, out_dist, out_mean,
+                    emit_rows)
         return
     pending = scratch("knn.pending", ti.i32, (grid.n,))
     _knn_cells(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, grid.cell_start,
