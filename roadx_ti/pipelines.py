@@ -16,7 +16,7 @@ import numpy as np
 
 from roadx_ti.cloud import Cloud
 from roadx_ti.stages import stage_class
-from roadx_ti.stages.base import CLASS_OTHER, StageContext
+from roadx_ti.stages.base import CLASS_OTHER, ESTIMATES, StageContext
 
 log = logging.getLogger("roadx_ti")
 
@@ -37,6 +37,7 @@ class PipelineResult:
     processed: np.ndarray             # bool per input point: not skipped by downsampling
     stages: list = field(default_factory=list)   # per-stage summary rows
     seconds: float = 0.0
+    estimates: dict = field(default_factory=dict)   # survey-wide estimates the stages used
 
 
 def build_stages(stage_specs):
@@ -57,6 +58,10 @@ def run(cloud: Cloud, stages, *, ctx: StageContext | None = None, truth: np.ndar
     (``unlabelled_target``) and how many others it gives it (``labelled_other``); for a stage that
     only segments, the same counts with "in a segment" for "given the class"."""
     ctx = ctx or StageContext()
+    if ESTIMATES not in ctx.facts:
+        # measured on the whole input before any stage (a tiled run hands in the survey's)
+        from roadx_ti.estimates import measure
+        ctx.facts[ESTIMATES] = measure(cloud)
     n = cloud.n
     classification = np.full(n, default_class, np.uint8)
     decided_by = np.zeros(n, np.uint8)
@@ -116,7 +121,7 @@ def run(cloud: Cloud, stages, *, ctx: StageContext | None = None, truth: np.ndar
     if not processed.all():
         _transfer_labels(cloud, processed, classification, decided_by, segment_id)
     return PipelineResult(classification, decided_by, segment_id, processed, rows,
-                          time.perf_counter() - t_start)
+                          time.perf_counter() - t_start, dict(ctx.facts[ESTIMATES]))
 
 
 def _transfer_labels(cloud, processed, classification, decided_by, segment_id):

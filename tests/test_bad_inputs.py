@@ -281,11 +281,12 @@ def case_negative_cloth_resolution(d):
 
 
 def case_k_larger_than_cloud(d):
-    """sor.k = 500 and color_growing.k = 64 on 60 points: a graceful result; SOR says it uses
+    """sor.k = 500 and road_regions.k = 32 on 60 points: a graceful result; SOR says it uses
     k = n - 1 (a warning) and the output is valid."""
     xyz, rgb, _ = _patch(n=60)
     src = write_las(d / "in" / "few.laz", xyz, rgb=rgb)
-    return _demo(d, src, extra=["--set", "stages.sor.k=500", "--set", "stages.color_growing.k=64",
+    return _demo(d, src, extra=["--set", "stages.sor.k=500", "--set", "stages.road_regions.k=32",
+                                "--set", "stages.uniform_downsample.target_density=null",
                                 "--set", "stages.uniform_downsample.ratio=1.0"],
                  code=0, warning="sor: k = 500 but only 60 points", check=lambda c: _las_result(c, src))
 

@@ -34,10 +34,7 @@ def test_run_demo_config_end_to_end(tmp_path, road_scene):
     out = tmp_path / "result.laz"
     before = road_scene.read_bytes()
     proc = run_cli("run", str(REPO / "configs" / "demo.yaml"), "--input", str(road_scene),
-                   "--output", str(out), "--backend", "cpu", "--set", "stages.uniform_downsample.ratio=0.8",
-                   # the target's minimum size is in points: scale it to this 60k-point scene
-                   "--set", "stages.color_growing.min_target_size=300",
-                   "--quiet")
+                   "--output", str(out), "--backend", "cpu", "--quiet")
     assert proc.returncode == 0, proc.stderr
     assert road_scene.read_bytes() == before          # input untouched
     las = laspy.read(out)
@@ -49,7 +46,8 @@ def test_run_demo_config_end_to_end(tmp_path, road_scene):
     assert 11 in classes and classes <= {1, 2, 6, 11}
     summary = json.loads(out.with_suffix(".summary.json").read_text())
     assert [s["stage"] for s in summary["stages"]] == ["uniform_downsample", "sor", "ransac_planes",
-                                                       "grid_slope", "cloth_smooth", "color_growing"]
+                                                       "grid_slope", "cloth_smooth", "road_regions"]
+    assert {"density_per_m2", "height_noise_m", "colour_noise"} <= set(summary["estimates"])
     assert summary["points"] == 60_000 and summary["accuracy"]["points"] == 60_000
     # accuracy proper is measured by `roadx_ti accuracy` on larger scenes; here: better than chance
     assert summary["accuracy"]["kappa"] > 0.2

@@ -37,7 +37,7 @@ def test_good_config_and_overrides():
     (GOOD, ["stages.grid_slope.step=abc"], "stages[1].grid_slope.step = 'abc'"),
     (GOOD, ["stages.sor.k=3"], "no stage 'sor'"),
     (GOOD, ["seed"], "expected KEY=VALUE"),
-    ({"stages": [{"uniform_downsample": {}}]}, [], "exactly one of target_points or ratio"),
+    ({"stages": [{"uniform_downsample": {}}]}, [], "exactly one of target_points, ratio or target_density"),
 ])
 def test_config_errors_are_one_line(mapping, overrides, expected):
     with pytest.raises(config.ConfigError) as info:

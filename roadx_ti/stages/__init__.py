@@ -16,6 +16,7 @@ REGISTRY = {
     "cloth_smooth": "roadx_ti.stages.cloth:ClothSmooth",
     "cloth_ground": "roadx_ti.stages.cloth:ClothGround",
     "color_growing": "roadx_ti.stages.growing:ColorGrowing",
+    "road_regions": "roadx_ti.stages.road_regions:RoadRegions",
     "roof_seeds": "roadx_ti.stages.seeds:RoofSeeds",
     "roof_growing": "roadx_ti.stages.roof_growing:RoofGrowing",
     "roof_filter": "roadx_ti.stages.roof_filter:RoofFilter",

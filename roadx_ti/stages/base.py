@@ -46,6 +46,14 @@ class StageResult:
 
 # ctx.facts key: local z of the lowest point of the whole survey a cloud was cut from (tiled runs)
 SURVEY_Z_MIN = "survey_z_min"
+# ctx.facts key: survey-wide estimates (roadx_ti.estimates.measure) that 'auto' options follow
+ESTIMATES = "estimates"
+
+
+def estimate(ctx: "StageContext", key: str, default=None):
+    """A survey-wide estimate (see roadx_ti.estimates), or ``default`` when not measured."""
+    value = ctx.facts.get(ESTIMATES, {}).get(key)
+    return default if value is None else value
 
 
 @dataclass

@@ -9,17 +9,20 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from roadx_ti.cloud import Cloud
-from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
+from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult, estimate
 
 
 class UniformOptions(StageOptions):
     target_points: int | None = Field(None, ge=1, description="keep this many points")
     ratio: float | None = Field(None, gt=0, le=1, description="keep this fraction of the points")
+    target_density: float | None = Field(None, gt=0, description="keep this many points per m2 of "
+                                         "occupied plan area (the survey's, see roadx_ti.estimates); "
+                                         "sparser input is kept whole")
 
     @model_validator(mode="after")
     def _one_of(self):
-        if (self.target_points is None) == (self.ratio is None):
-            raise ValueError("give exactly one of target_points or ratio")
+        if sum(v is not None for v in (self.target_points, self.ratio, self.target_density)) != 1:
+            raise ValueError("give exactly one of target_points, ratio or target_density")
         return self
 
 
@@ -29,13 +32,20 @@ class UniformDownsample(Stage):
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         n = cloud.n
+        o = self.options
+        ratio = o.ratio
+        if o.target_density is not None:
+            # the survey's density (a tile keeps the survey-wide share of its points)
+            density = estimate(ctx, "density_per_m2") or 0.0
+            ratio = min(1.0, o.target_density / density) if density > 0 else 1.0
         # a ratio > 0 keeps at least one point: rounding must not leave a tiny cloud unprocessed
-        target = self.options.target_points or max(int(round(n * self.options.ratio)), min(n, 1))
+        target = o.target_points or max(int(round(n * ratio)), min(n, 1))
         from roadx_ti.kernels.downsample import uniform_sample
 
         keep = np.zeros(n, bool)
         keep[uniform_sample(cloud.xyz, min(target, n))[0]] = True
-        return StageResult(keep=keep, mode="subsample", info={"target_points": int(keep.sum())})
+        return StageResult(keep=keep, mode="subsample", info={"target_points": int(keep.sum()),
+                                                              "ratio": round(target / max(n, 1), 5)})
 
 
 class VoxelOptions(StageOptions):

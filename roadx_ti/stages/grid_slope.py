@@ -1,11 +1,14 @@
 """R4 grid min-height slope / height-difference filter (kernel: roadx_ti.kernels.grid_min)."""
 from __future__ import annotations
 
+from typing import Literal
+
+import numpy as np
 from pydantic import Field
 
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.grid_min import slope_filter
-from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
+from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult, estimate
 
 
 class GridSlopeOptions(StageOptions):
@@ -13,6 +16,10 @@ class GridSlopeOptions(StageOptions):
     slope_max: float = Field(0.1, gt=0, description="S_t: max slope dh / horizontal distance to the "
                              "cell's lowest point (dimensionless); paper 0.1")
     dh_max: float = Field(1.0, gt=0, description="dh_t: max height above the cell's lowest point (m); paper 1")
+    noise_allowance: float | Literal["auto"] | None = Field(
+        None, description="a point less than this above its cell's lowest point is never removed for "
+        "its slope (m): near the lowest point, noise alone makes S large. 'auto': 4 x the survey's "
+        "height noise; None: off (the paper's test)")
 
 
 class GridSlope(Stage):
@@ -25,5 +32,12 @@ class GridSlope(Stage):
         o = self.options
         keep, height = slope_filter(cloud.xyz, o.step, o.slope_max, o.dh_max)
         keep = keep.astype(bool)
+        info = {}
+        allowance = o.noise_allowance
+        if allowance == "auto":
+            allowance = 4.0 * float(estimate(ctx, "height_noise_m", 0.0))
+        if allowance:
+            keep |= (np.asarray(height) < allowance) & (np.asarray(height) < o.dh_max)
+            info["noise_allowance_m"] = round(float(allowance), 4)
         return StageResult(keep=keep, point_data={"height_above_cell_min": height},
-                           info={"removed": int((~keep).sum())})
+                           info={"removed": int((~keep).sum()), **info})

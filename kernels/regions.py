@@ -1,0 +1,555 @@
+"""Region-level road segmentation kernels (METHODS.md R6, the region-graph reading).
+
+Per point, on a kNN graph (``knn`` rows, -1 = dropped):
+- ``neighbourhood_median``: per channel median of a point's value and its neighbours' (colour
+  denoising that keeps edges where they are, unlike a mean);
+- ``mode_heights``: an edge-preserving height filter: the slope-corrected heights of a point and
+  its neighbours (``gradient``: dz/dx, dz/dy of a coarse local plane), their median, then a few
+  steps to the median of those within ``width`` of the current estimate: noise drops by about
+  the square root of the neighbourhood size while a kerb stays a step;
+- ``edge_steps``: the slope-corrected filtered height difference along each graph edge.
+
+Every thread reads its own row in slot order and writes only its own output: results are
+bit-identical run to run and across backends with the same float rules.
+
+Host functions (numpy, deterministic): ``graph_edges`` (each undirected kNN edge once),
+``coarse_gradient`` (least-squares planes of coarse cells) and ``merge_regions_by_colour``: region
+merging on the region adjacency graph with a region-level criterion (region mean colours), in
+rounds of star merges (a region joins its most similar larger neighbour unless another region
+joins it in the same round), over a schedule of colour thresholds, with a veto on pairs whose
+shared boundary shows steps (kerbs): colour gradients cannot chain regions together as a
+point-to-point threshold does. ``merge_regions_sequential`` is the plain reference of the same
+rounds, one region at a time, for tests.
+"""
+
+import numpy as np
+
+from .common import kernel_array, length, like_input, output_array, to_numpy
+from .taichi_compat import ti
+
+MAX_ROW = 33          # a point and at most 32 neighbours
+
+
+@ti.func
+def _median(v: ti.template(), count: ti.i32) -> ti.f32:
+    """Median of v[0:count] (sorted in place by insertion); the mean of the middle two for an
+    even count, as numpy's median."""
+    for a in range(1, count):
+        x = v[a]
+        b = a
+        while b > 0:
+            if v[b - 1] > x:
+                v[b] = v[b - 1]
+                b -= 1
+            else:
+                break
+        v[b] = x
+    mid = count // 2
+    out = v[mid]
+    if count % 2 == 0:
+        out = 0.5 * (v[mid - 1] + v[mid])
+    return out
+
+
+@ti.kernel
+def _neighbourhood_median(nbr: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                          values: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                          out: ti.types.ndarray(dtype=ti.f32, ndim=2)):
+    for i, c in ti.ndrange(values.shape[0], values.shape[1]):
+        v = ti.Vector([0.0] * MAX_ROW, ti.f32)
+        v[0] = values[i, c]
+        count = 1
+        for s in range(nbr.shape[1]):
+            j = nbr[i, s]
+            if j >= 0:
+                v[count] = values[j, c]
+                count += 1
+        out[i, c] = _median(v, count)
+
+
+@ti.kernel
+def _mode_heights(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                  grad: ti.types.ndarray(dtype=ti.f32, ndim=2), width: ti.f32, steps: ti.i32,
+                  out: ti.types.ndarray(dtype=ti.f32, ndim=1)):
+    for i in range(xyz.shape[0]):
+        zc = ti.Vector([0.0] * MAX_ROW, ti.f32)
+        zc[0] = xyz[i, 2]
+        count = 1
+        for s in range(nbr.shape[1]):
+            j = nbr[i, s]
+            if j >= 0:
+                dx = xyz[j, 0] - xyz[i, 0]
+                dy = xyz[j, 1] - xyz[i, 1]
+                zc[count] = xyz[j, 2] - grad[i, 0] * dx - grad[i, 1] * dy
+                count += 1
+        work = zc
+        z = _median(work, count)
+        for _ in range(steps):
+            near = ti.Vector([0.0] * MAX_ROW, ti.f32)
+            m = 0
+            for a in range(count):
+                if ti.abs(zc[a] - z) <= width:
+                    near[m] = zc[a]
+                    m += 1
+            if m > 0:
+                z = _median(near, m)
+        out[i] = z
+
+
+@ti.kernel
+def _edge_steps(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), z: ti.types.ndarray(dtype=ti.f32, ndim=1),
+                grad: ti.types.ndarray(dtype=ti.f32, ndim=2), ea: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                eb: ti.types.ndarray(dtype=ti.i32, ndim=1), out: ti.types.ndarray(dtype=ti.f32, ndim=1)):
+    for e in range(ea.shape[0]):
+        a = ea[e]
+        b = eb[e]
+        gx = 0.5 * (grad[a, 0] + grad[b, 0])
+        gy = 0.5 * (grad[a, 1] + grad[b, 1])
+        out[e] = (z[b] - z[a]) - gx * (xyz[b, 0] - xyz[a, 0]) - gy * (xyz[b, 1] - xyz[a, 1])
+
+
+def _check_rows(nbr, n):
+    if len(nbr.shape) != 2 or int(nbr.shape[0]) != n:
+        raise ValueError(f"neighbour table must have shape (n, k) with n={n}, got {tuple(nbr.shape)}")
+    if int(nbr.shape[1]) + 1 > MAX_ROW:
+        raise ValueError(f"at most {MAX_ROW - 1} neighbours per point, got {int(nbr.shape[1])}")
+
+
+def neighbourhood_median(values, neighbors):
+    """float32 (n, c): per channel median of each point's value and its neighbours' (rows of
+    ``neighbors`` int32 (n, k <= 32), -1 = none). numpy or ndarray, as ``values``."""
+    vals = kernel_array(values, np.float32)
+    n = length(vals)
+    nbr = kernel_array(neighbors, np.int32)
+    _check_rows(nbr, n)
+    out = output_array(ti.f32, tuple(vals.shape), values)
+    if n:
+        _neighbourhood_median(nbr, vals, out)
+    return like_input(out, values)
+
+
+def mode_heights(xyz, neighbors, gradient, width: float, steps: int = 3):
+    """float32 (n,): edge-preserving filtered height of every point (see the module docstring).
+    ``gradient`` float32 (n, 2) is the local slope used to compare heights at one place;
+    ``width`` (m) the window of heights that count as the same surface (about 2.5 x the height
+    noise)."""
+    pts = kernel_array(xyz, np.float32)
+    n = length(pts)
+    nbr = kernel_array(neighbors, np.int32)
+    _check_rows(nbr, n)
+    out = output_array(ti.f32, (n,), xyz)
+    if n:
+        _mode_heights(pts, nbr, kernel_array(gradient, np.float32), float(width), int(steps), out)
+    return like_input(out, xyz)
+
+
+def edge_steps(xyz, heights, gradient, ea, eb):
+    """float32 (E,): heights[b] - heights[a] minus the slope's share, per edge (a, b)."""
+    pts = kernel_array(xyz, np.float32)
+    a = kernel_array(ea, np.int32)
+    out = output_array(ti.f32, (length(a),), ea)
+    if length(a):
+        _edge_steps(pts, kernel_array(heights, np.float32), kernel_array(gradient, np.float32), a,
+                    kernel_array(eb, np.int32), out)
+    return like_input(out, ea)
+
+
+# ------------------------------------------------------------------------------------------------
+# host: graph, coarse slope, region merging
+
+def graph_edges(indices: np.ndarray, distances: np.ndarray, max_length: float):
+    """Each undirected edge of a kNN table once, as (a, b) int64 with a < b: an entry i -> j
+    no longer than ``max_length``, taken from the row of i when i < j, or from the row of j
+    when j's row does not hold i (a one-way neighbour)."""
+    n, k = indices.shape
+    src = np.repeat(np.arange(n, dtype=np.int64), k)
+    dst = indices.reshape(-1).astype(np.int64)
+    ok = (dst >= 0) & (distances.reshape(-1) <= max_length)
+    src, dst = src[ok], dst[ok]
+    forward = src < dst
+    back = ~forward
+    # i -> j with i > j: kept only when j -> i is not in the table (else it is counted there)
+    mutual = (indices[dst[back]] == src[back, None]).any(axis=1)
+    keep_back = np.flatnonzero(back)[~mutual]
+    a = np.concatenate([src[forward], dst[keep_back]])
+    b = np.concatenate([dst[forward], src[keep_back]])
+    order = np.lexsort((b, a))
+    return a[order], b[order]
+
+
+def coarse_gradient(xyz: np.ndarray, cell: float) -> np.ndarray:
+    """float32 (n, 2): slope (dz/dx, dz/dy) of the least-squares plane through each point's
+    square cell of edge ``cell`` (cells of fewer than 6 points or degenerate: 0). float64 sums
+    in input order (deterministic)."""
+    n = len(xyz)
+    if n == 0:
+        return np.zeros((0, 2), np.float32)
+    key = np.floor(xyz[:, :2] / cell).astype(np.int64)
+    key -= key.min(axis=0)
+    _, inv = np.unique(key[:, 0] * (int(key[:, 1].max()) + 1) + key[:, 1], return_inverse=True)
+    inv = inv.ravel()
+    x, y, z = (xyz[:, c].astype(np.float64) for c in range(3))
+    cnt = np.bincount(inv).astype(np.float64)
+
+    def total(v):
+        return np.bincount(inv, weights=v)
+    dx, dy, dz = x - (total(x) / cnt)[inv], y - (total(y) / cnt)[inv], z - (total(z) / cnt)[inv]
+    sxx, sxy, syy, sxz, syz = total(dx * dx), total(dx * dy), total(dy * dy), total(dx * dz), total(dy * dz)
+    det = sxx * syy - sxy * sxy
+    ok = (cnt >= 6) & (det > 1e-12 * np.maximum(sxx * syy, 1e-30))
+    safe = np.where(ok, det, 1.0)
+    a = np.where(ok, (sxz * syy - syz * sxy) / safe, 0.0)
+    b = np.where(ok, (syz * sxx - sxz * sxy) / safe, 0.0)
+    return np.column_stack([a[inv], b[inv]]).astype(np.float32)
+
+
+class RegionGraph:
+    """Regions (points per region, colour sums) and their adjacency (pairs a < b with the
+    number of graph edges between them and how many of those step up from a to b / from b to
+    a). ``label`` maps points to regions 0..R-1."""
+
+    def __init__(self, label, count, colour_sum, pa, pb, edges, up, down):
+        self.label, self.count, self.colour_sum = label, count, colour_sum
+        self.pa, self.pb, self.edges, self.up, self.down = pa, pb, edges, up, down
+
+    @property
+    def n_regions(self) -> int:
+        return len(self.count)
+
+    def mean_colour(self) -> np.ndarray:
+        return self.colour_sum / np.maximum(self.count, 1)[:, None]
+
+
+def pair_table(ra, rb, edges, up, down, n_regions):
+    """Region pairs keyed (min, max) with summed edge counts and oriented step counts (up: from
+    the first region of the pair to the second); host numpy, deterministic."""
+    ra, rb = np.asarray(ra, np.int64), np.asarray(rb, np.int64)
+    flip = ra > rb
+    up2, down2 = np.where(flip, down, up), np.where(flip, up, down)
+    a, b = np.minimum(ra, rb), np.maximum(ra, rb)
+    key = a * n_regions + b
+    uk, inv = np.unique(key, return_inverse=True)
+    inv = inv.ravel()
+    return (uk // n_regions, uk % n_regions, np.bincount(inv, weights=edges, minlength=len(uk)),
+            np.bincount(inv, weights=up2, minlength=len(uk)), np.bincount(inv, weights=down2, minlength=len(uk)))
+
+
+# fixed-point scales: integer atomics make every sum independent of thread order
+COLOUR_SCALE = 64          # colour units -> int64 sums
+STEP_SCALE = 4096          # step probabilities -> int64 sums
+_EMPTY = np.iinfo(np.int64).max
+_HASH = -7046029254386353131      # 0x9E3779B97F4A7C15 as a signed 64-bit constant
+
+
+@ti.func
+def _slot(key: ti.i64, bits: ti.i32) -> ti.i32:
+    return ti.cast(ti.cast(key * ti.i64(_HASH), ti.u64) >> ti.u64(64 - bits), ti.i32)
+
+
+@ti.kernel
+def _reset_regions(count: ti.types.ndarray(dtype=ti.i64, ndim=1), csum: ti.types.ndarray(dtype=ti.i64, ndim=2),
+                   colour: ti.types.ndarray(dtype=ti.f32, ndim=2), label: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in range(label.shape[0]):
+        label[i] = i
+        count[i] = 1
+        for c in ti.static(range(3)):
+            csum[i, c] = ti.cast(ti.round(colour[i, c] * COLOUR_SCALE), ti.i64)
+
+
+@ti.kernel
+def _fill_i64(a: ti.types.ndarray(dtype=ti.i64, ndim=1), value: ti.i64, size: ti.i32):
+    for i in range(size):
+        a[i] = value
+
+
+@ti.kernel
+def _insert_pairs(ea: ti.types.ndarray(dtype=ti.i32, ndim=1), eb: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                  label: ti.types.ndarray(dtype=ti.i32, ndim=1), keys: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                  bits: ti.i32, n: ti.i64):
+    """Every boundary edge's region pair into the open-addressing table: an integer atomic_min
+    claims an empty slot or displaces a larger key, which is carried on (keys in a slot only
+    ever decrease, so the table ends the same whatever the order: each key in one slot)."""
+    mask = (1 << bits) - 1
+    for e in range(ea.shape[0]):
+        la = label[ea[e]]
+        lb = label[eb[e]]
+        if la != lb:
+            key = ti.min(la, lb) * n + ti.max(la, lb)
+            slot = _slot(key, bits)
+            for _ in range(1 << bits):
+                old = ti.atomic_min(keys[slot], key)
+                if old == key or old == ti.i64(_EMPTY):
+                    break
+                if old > key:
+                    key = old          # displaced: carry the larger key on
+                slot = (slot + 1) & mask
+
+
+@ti.func
+def _find_slot(keys: ti.template(), key: ti.i64, bits: ti.i32) -> ti.i32:
+    mask = (1 << bits) - 1
+    slot = _slot(key, bits)
+    while keys[slot] != key:
+        slot = (slot + 1) & mask
+    return slot
+
+
+@ti.kernel
+def _accumulate_pairs(ea: ti.types.ndarray(dtype=ti.i32, ndim=1), eb: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                      up: ti.types.ndarray(dtype=ti.i64, ndim=1), down: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                      label: ti.types.ndarray(dtype=ti.i32, ndim=1), keys: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                      pair_edges: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                      pair_steps: ti.types.ndarray(dtype=ti.i64, ndim=1), bits: ti.i32, n: ti.i64):
+    for e in range(ea.shape[0]):
+        la = label[ea[e]]
+        lb = label[eb[e]]
+        if la != lb:
+            slot = _find_slot(keys, ti.min(la, lb) * n + ti.max(la, lb), bits)
+            ti.atomic_add(pair_edges[slot], 1)
+            ti.atomic_add(pair_steps[slot], up[e] + down[e])
+
+
+@ti.func
+def _mean_colour(csum: ti.template(), count: ti.template(), r: ti.i32):
+    # float64: its division is correctly rounded on every backend with f64, so CPU and Vulkan
+    # make the same merges (float32 division may differ in the last bit on GPUs)
+    inv = 1.0 / (ti.cast(count[r], ti.f64) * COLOUR_SCALE)
+    return ti.Vector([ti.cast(csum[r, 0], ti.f64) * inv, ti.cast(csum[r, 1], ti.f64) * inv,
+                      ti.cast(csum[r, 2], ti.f64) * inv], ti.f64)
+
+
+@ti.kernel
+def _best_neighbours(keys: ti.types.ndarray(dtype=ti.i64, ndim=1), pair_edges: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                     pair_steps: ti.types.ndarray(dtype=ti.i64, ndim=1), count: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                     csum: ti.types.ndarray(dtype=ti.i64, ndim=2), best: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                     n: ti.i64, level: ti.f64, size_pass: ti.i32, min_size: ti.i64, max_chroma: ti.f64,
+                     veto: ti.f64, size: ti.i32):
+    """Each valid pair offers itself to both of its regions: best[r] = min over (cost bits << 32 |
+    other region), an integer minimum (ties to the lower region id). Costs are squared mean
+    colour distances in float64 (rounded to float32 for the order key)."""
+    for s in range(size):
+        key = keys[s]
+        if key != ti.i64(_EMPTY):
+            a = ti.cast(key // n, ti.i32)
+            b = ti.cast(key % n, ti.i32)
+            d = _mean_colour(csum, count, a) - _mean_colour(csum, count, b)
+            cost2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+            grey = (d[0] + d[1] + d[2]) / 3.0
+            c0, c1, c2 = d[0] - grey, d[1] - grey, d[2] - grey
+            chroma2 = c0 * c0 + c1 * c1 + c2 * c2
+            ok = ti.cast(pair_steps[s], ti.f64) <= veto * STEP_SCALE * ti.cast(pair_edges[s], ti.f64) \
+                and chroma2 <= max_chroma * max_chroma
+            if size_pass:
+                ok = ok and (count[a] < min_size or count[b] < min_size)
+            else:
+                ok = ok and cost2 <= level * level
+            if ok:
+                bits = ti.cast(ti.bit_cast(ti.cast(cost2, ti.f32), ti.i32), ti.i64) << 32
+                ti.atomic_min(best[a], bits | ti.cast(b, ti.i64))
+                ti.atomic_min(best[b], bits | ti.cast(a, ti.i64))
+
+
+@ti.kernel
+def _choose_hooks(best: ti.types.ndarray(dtype=ti.i64, ndim=1), count: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                  label: ti.types.ndarray(dtype=ti.i32, ndim=1), hook: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                  targeted: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    """A region hooks onto its best neighbour when that one is larger (size, then id)."""
+    for r in range(label.shape[0]):
+        hook[r] = -1
+        if label[r] == r and best[r] != ti.i64(_EMPTY):
+            other = ti.cast(best[r] & ti.i64(0xFFFFFFFF), ti.i32)
+            if count[other] > count[r] or (count[other] == count[r] and other > r):
+                hook[r] = other
+                targeted[other] = 1
+
+
+@ti.kernel
+def _apply_hooks(hook: ti.types.ndarray(dtype=ti.i32, ndim=1), targeted: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                 count: ti.types.ndarray(dtype=ti.i64, ndim=1), csum: ti.types.ndarray(dtype=ti.i64, ndim=2),
+                 merged: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    """Star merges: a hooking region that nobody hooks onto joins its target (sizes and colour
+    sums added with integer atomics); a region others hook onto stays put this round."""
+    for r in range(hook.shape[0]):
+        h = hook[r]
+        if h >= 0 and targeted[r] == 0:
+            ti.atomic_add(count[h], count[r])
+            for c in ti.static(range(3)):
+                ti.atomic_add(csum[h, c], csum[r, c])
+            ti.atomic_add(merged[0], 1)
+        else:
+            hook[r] = -1
+
+
+@ti.kernel
+def _relabel(label: ti.types.ndarray(dtype=ti.i32, ndim=1), hook: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in range(label.shape[0]):
+        h = hook[label[i]]
+        if h >= 0:
+            label[i] = h
+
+
+@ti.kernel
+def _clear_round(best: ti.types.ndarray(dtype=ti.i64, ndim=1), targeted: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for r in range(best.shape[0]):
+        best[r] = ti.i64(_EMPTY)
+        targeted[r] = 0
+
+
+def _host_round(label, count, csum, ea, eb, up_q, down_q, n, level, size_pass, min_size, max_chroma, veto):
+    """One merging round on the host (numpy), the same arithmetic as the kernels: for backends
+    without 64-bit atomics (Vulkan, Metal). Updates label/count/csum in place; returns the
+    number of regions that joined another."""
+    la, lb = label[ea], label[eb]
+    key = np.minimum(la, lb).astype(np.int64) * n + np.maximum(la, lb)
+    uk, inv = np.unique(key, return_inverse=True)
+    inv = inv.ravel()
+    edges = np.bincount(inv, minlength=len(uk)).astype(np.float64)
+    steps = np.bincount(inv, weights=(up_q + down_q).astype(np.float64), minlength=len(uk))
+    pa, pb = uk // n, uk % n
+    inv_a = 1.0 / (count[pa].astype(np.float64) * COLOUR_SCALE)
+    inv_b = 1.0 / (count[pb].astype(np.float64) * COLOUR_SCALE)
+    d = csum[pa].astype(np.float64) * inv_a[:, None] - csum[pb].astype(np.float64) * inv_b[:, None]
+    cost2 = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]
+    grey = (d[:, 0] + d[:, 1] + d[:, 2]) / 3.0
+    c = d - grey[:, None]
+    chroma2 = c[:, 0] * c[:, 0] + c[:, 1] * c[:, 1] + c[:, 2] * c[:, 2]
+    ok = (steps <= veto * STEP_SCALE * edges) & (chroma2 <= max_chroma * max_chroma)
+    if size_pass:
+        ok &= (count[pa] < min_size) | (count[pb] < min_size)
+    else:
+        ok &= cost2 <= level * level
+    bits = cost2.astype(np.float32).view(np.int32).astype(np.int64) << 32
+    best = np.full(n, _EMPTY, np.int64)
+    np.minimum.at(best, pa[ok], bits[ok] | pb[ok])
+    np.minimum.at(best, pb[ok], bits[ok] | pa[ok])
+    me = np.flatnonzero((label[np.arange(n)] == np.arange(n)) & (best != _EMPTY))
+    other = (best[me] & 0xFFFFFFFF).astype(np.int64)
+    larger = (count[other] > count[me]) | ((count[other] == count[me]) & (other > me))
+    me, other = me[larger], other[larger]
+    targeted = np.zeros(n, bool)
+    targeted[other] = True
+    keep = ~targeted[me]
+    me, other = me[keep], other[keep]
+    if not len(me):
+        return 0
+    np.add.at(count, other, count[me])
+    np.add.at(csum, other, csum[me])
+    hook = np.arange(n, dtype=np.int64)
+    hook[me] = other
+    label[:] = hook[label]
+    return len(me)
+
+
+def _device_round(state, live, n, bits, level, size_pass, min_size, max_chroma, veto):
+    """The same round with the kernels (64-bit integer atomics): returns the regions joined."""
+    label, count, csum, best, hook, targeted, merged, keys, pair_edges, pair_steps = state
+    for table, value in ((keys, _EMPTY), (pair_edges, 0), (pair_steps, 0)):
+        _fill_i64(table, value, 1 << bits)
+    ua, ub, uu, dd = (kernel_array(v, v.dtype) for v in live)
+    _insert_pairs(ua, ub, label, keys, bits, n)
+    _accumulate_pairs(ua, ub, uu, dd, label, keys, pair_edges, pair_steps, bits, n)
+    _clear_round(best, targeted)
+    _best_neighbours(keys, pair_edges, pair_steps, count, csum, best, n, level, size_pass,
+                     int(min_size), float(max_chroma), float(veto), 1 << bits)
+    _choose_hooks(best, count, label, hook, targeted)
+    merged[0] = 0
+    _apply_hooks(hook, targeted, count, csum, merged)
+    joined = int(merged[0])
+    if joined:
+        _relabel(label, hook)
+    return joined
+
+
+def _native_int64_atomics() -> bool:
+    """Backends whose 64-bit integer atomics Taichi maps to hardware ones (CPU and CUDA); the
+    SPIR-V backends (Vulkan, Metal) are given the host rounds (measured: lavapipe's i64
+    atomic_min gave run-to-run different merges)."""
+    from .taichi_compat import current_arch
+    return current_arch() in (ti.x64, ti.arm64, ti.cuda)
+
+
+def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, levels, max_chroma_step,
+                            step_veto, min_size=0, max_rounds=1000, settle=0.002, host=None):
+    """Agglomerate points into regions (see the module docstring) and return a RegionGraph.
+
+    ea, eb: int (E,) graph edges; steps_up / steps_down: float (E,) probability that the edge
+    steps up from a to b (b to a) by a kerb; colour: float (n, 3); levels: ascending colour
+    thresholds (colour units) of the schedule: a pair merges at a level when its mean colours
+    differ by at most the level, their chroma (colour minus grey) by at most
+    ``max_chroma_step``, and the step probabilities of its boundary edges sum to at most
+    ``step_veto`` of their number; min_size: a last pass lets regions smaller than this join
+    their best neighbour whatever the colour (still under the step veto). Each round: every
+    region finds its most similar valid neighbour; a region whose best neighbour is larger joins
+    it, unless another region joins it in the same round (star merges, no chains). A level ends
+    when a round joins fewer than ``settle`` of the regions left. ``host``: run the rounds with
+    numpy (default: on backends without native 64-bit atomics); the result is the same."""
+    n = int(n_points)
+    col = np.ascontiguousarray(colour, np.float32)
+    a32 = np.ascontiguousarray(ea, np.int32)
+    b32 = np.ascontiguousarray(eb, np.int32)
+    up_q = np.rint(np.asarray(steps_up, np.float64) * STEP_SCALE).astype(np.int64)
+    down_q = np.rint(np.asarray(steps_down, np.float64) * STEP_SCALE).astype(np.int64)
+    host = (not _native_int64_atomics()) if host is None else bool(host)
+    if host:
+        label = np.arange(n, dtype=np.int64)
+        count = np.ones(n, np.int64)
+        csum = np.rint(col.astype(np.float32) * np.float32(COLOUR_SCALE)).astype(np.int64)
+    else:
+        label = output_array(ti.i32, (n,), col)
+        count = output_array(ti.i64, (n,), col)
+        csum = output_array(ti.i64, (n, 3), col)
+        cap = max(4, int(np.ceil(np.log2(max(2 * len(a32), 16)))))
+        state = (label, count, csum) + tuple(output_array(t, (n,), col) for t in (ti.i64, ti.i32, ti.i32)) \
+            + (output_array(ti.i32, (1,), col),) + tuple(output_array(ti.i64, (1 << cap,), col) for _ in range(3))
+        if n:
+            _reset_regions(count, csum, kernel_array(col, np.float32), label)
+    live = (a32, b32, up_q, down_q)
+    schedule = [(float(v), 0) for v in levels] + ([(0.0, 1)] if min_size > 1 else [])
+    rounds = 0
+    regions_left = n
+    for level, size_pass in schedule:
+        while rounds < max_rounds and n:
+            # only boundary edges matter; interior ones never become boundary again
+            lab_host = label if host else to_numpy(label)
+            boundary = lab_host[live[0]] != lab_host[live[1]]
+            if not boundary.all():
+                live = tuple(np.ascontiguousarray(v[boundary]) for v in live)
+            if not len(live[0]):
+                break
+            rounds += 1
+            if merge_regions_by_colour.trace is not None:
+                merge_regions_by_colour.trace.append((level, size_pass, len(live[0])))
+            if host:
+                joined = _host_round(label, count, csum, *live, n, level, size_pass, min_size,
+                                     float(max_chroma_step), float(step_veto))
+            else:
+                bits = max(4, int(np.ceil(np.log2(2 * len(live[0])))))
+                joined = _device_round(state, live, n, bits, level, size_pass, min_size, max_chroma_step,
+                                       step_veto)
+            if joined == 0:
+                break
+            regions_left -= joined
+            if joined < settle * regions_left:
+                break       # the level has settled: the rest of its merges are a thin tail
+    return _region_graph(np.asarray(to_numpy(label)).astype(np.int64), to_numpy(count), to_numpy(csum),
+                         a32, b32, np.asarray(steps_up, np.float64), np.asarray(steps_down, np.float64))
+
+
+merge_regions_by_colour.trace = None
+
+
+def _region_graph(label, count, csum, ea, eb, up, down):
+    """Compact region ids 0..R-1 in order of each region's first point (so that equal partitions
+    get equal ids, whichever point a backend's merges left as the root) and the final pair table."""
+    roots, first, compact = np.unique(label, return_index=True, return_inverse=True)
+    rank = np.empty(len(roots), np.int64)
+    order = np.argsort(first, kind="stable")
+    rank[order] = np.arange(len(roots))
+    compact = rank[compact.ravel()]
+    roots = roots[order]
+    la, lb = compact[ea], compact[eb]
+    cross = la != lb
+    pa, pb, m, u, d = pair_table(la[cross], lb[cross], np.ones(int(cross.sum())), up[cross], down[cross],
+                                 max(len(roots), 1))
+    return RegionGraph(compact, count[roots].astype(np.float64),
+                       csum[roots].astype(np.float64) / COLOUR_SCALE, pa, pb, m, u, d)

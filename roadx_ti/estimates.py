@@ -1,0 +1,85 @@
+"""Survey-wide estimates that ``auto`` stage parameters are derived from (METHODS.md, Adaptivity).
+
+Measured once on the whole input (a tiled run measures a spatially uniform sample of the whole
+catalog and hands the same values to every tile), logged, and written to the summary JSON:
+
+- ``plan_area_m2`` / ``density_per_m2``: occupied plan area (cells of ``AREA_CELL`` m holding a
+  point) and points per m2 of it, never the bounding box (stray points far away do not count);
+- ``point_spacing_m``: median distance to the nearest neighbour in plan, on a sample;
+- ``height_noise_m``: robust spread of slope-corrected height differences between neighbours
+  whose neighbourhoods are among the flatter half (1.4826 x median absolute difference /
+  sqrt 2): the noise of one point on a smooth surface;
+- ``colour_noise``: the same for grey levels (8-bit units) where the input has colour.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from roadx_ti.cloud import Cloud
+
+log = logging.getLogger("roadx_ti")
+
+AREA_CELL = 1.0          # m: plan cells counted as occupied area
+SAMPLE_POINTS = 200_000  # points the neighbour statistics are measured on
+MAD_TO_SIGMA = 1.4826
+
+
+def occupied_area(xy: np.ndarray, cell: float = AREA_CELL) -> float:
+    """m2 of the plan cells of edge ``cell`` that hold at least one point."""
+    if len(xy) == 0:
+        return 0.0
+    key = np.floor(np.asarray(xy, np.float64) / cell).astype(np.int64)
+    key -= key.min(axis=0)
+    width = int(key[:, 1].max()) + 1
+    return float(len(np.unique(key[:, 0] * width + key[:, 1]))) * cell * cell
+
+
+def uniform_sample(n: int, size: int, seed: int = 0) -> np.ndarray:
+    """Sorted indices of ``size`` of ``n`` points drawn without replacement (all when n <= size)."""
+    if n <= size:
+        return np.arange(n)
+    return np.sort(np.random.default_rng(seed).choice(n, size, replace=False))
+
+
+def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0) -> dict:
+    """The estimates of the module docstring for ``cloud`` (a whole survey or a sample of one)."""
+    from roadx_ti.kernels.features import covariance_features
+    from roadx_ti.kernels.neighbors import knn
+    from roadx_ti.kernels.regions import coarse_gradient
+
+    n = cloud.n
+    area = occupied_area(cloud.xyz[:, :2])
+    out = {"points": int(n), "plan_area_m2": round(area, 1),
+           "density_per_m2": round(n / area, 3) if area else 0.0}
+    if n < 8:
+        return out
+    pick = uniform_sample(n, sample_points, seed)
+    xyz = np.ascontiguousarray(cloud.xyz[pick])
+    k = min(8, len(xyz) - 1)
+    idx, dist = knn(xyz, k)
+    # plan spacing of the full cloud: a sample of fraction f is 1/sqrt(f) sparser
+    flat = np.ascontiguousarray(np.column_stack([xyz[:, :2], np.zeros(len(xyz), np.float32)]))
+    nn_plan = knn(flat, 1)[1][:, 0]
+    out["point_spacing_m"] = round(float(np.median(nn_plan)) * np.sqrt(len(xyz) / n), 4)
+    gradient = coarse_gradient(xyz, 2.5)
+    a = np.repeat(np.arange(len(xyz)), k)
+    b = idx.reshape(-1)
+    ok = b >= 0
+    a, b = a[ok], b[ok]
+    g = 0.5 * (gradient[a] + gradient[b])
+    dz = (xyz[b, 2] - xyz[a, 2]) - (g * (xyz[b, :2] - xyz[a, :2])).sum(axis=1)
+    # smooth surfaces only: both ends among the flatter half of the points (crowns, walls and
+    # edges have the curved neighbourhoods)
+    curvature = np.asarray(covariance_features(xyz, idx)["curvature"])
+    flat = curvature <= np.median(curvature)
+    smooth = flat[a] & flat[b]
+    dz = dz[smooth] if smooth.sum() >= 100 else dz
+    out["height_noise_m"] = round(MAD_TO_SIGMA * float(np.median(np.abs(dz))) / np.sqrt(2.0), 4)
+    rgb = cloud.rgb8()
+    if rgb is not None and np.ptp(rgb) > 0:
+        grey = rgb[pick].mean(axis=1)
+        out["colour_noise"] = round(MAD_TO_SIGMA * float(np.median(np.abs(grey[b] - grey[a]))) / np.sqrt(2.0), 3)
+    log.info("survey estimates: %s", out)
+    return out

@@ -1,0 +1,196 @@
+"""Road / not-road labelling of a region graph (METHODS.md R6, target road selection).
+
+The road is taken as the lower side of kerbs: the regions of a colour segmentation (kernels
+``regions.merge_regions_by_colour``) and the steps along their shared boundaries are scored as a
+binary labelling problem and solved exactly by one minimum cut (scipy's max-flow):
+
+- a pair whose boundary steps up (a kerb: at least ``kerb_from`` of its edges step, fully from
+  ``kerb_full``) penalises its upper side being road while the lower is not (``upper_road``) and
+  both being road (``both_road``), and rewards its lower side being road (``lower_road``);
+- a pair whose boundary is continuous wants one label (``smooth`` per edge), less so when its
+  chroma or brightness differ (contrast-sensitive);
+- each region's own term is the log ratio of two colour densities at its mean colour: of the
+  regions on the lower sides of kerbs (road samples) and of those on the upper sides (sidewalk
+  samples), weighted by their kerb edges: "road-like" is learnt from the scene itself. Strongly
+  chromatic regions (vegetation) lean to not road.
+
+After the cut, road components (over continuous pairs) that are small or lack kerb evidence are
+dropped, and not-road groups mostly enclosed by road (markings, shadow patches, manholes) join it.
+All energies are integers after scaling, so the cut is deterministic.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import breadth_first_order, connected_components, maximum_flow
+
+
+@dataclass(frozen=True)
+class Weights:
+    kerb_from: float = 0.05       # fraction of stepping boundary edges where a pair starts to be a kerb
+    kerb_full: float = 0.20       # ... and is fully one
+    upper_road: float = 32.0      # per kerb edge: upper side road, lower not
+    both_road: float = 6.0        # per kerb edge: both sides road
+    lower_road: float = 1.0       # per kerb edge: reward of the lower side being road
+    smooth: float = 1.0           # per continuous edge: the two sides differ
+    colour: float = 1.0           # per point: weight of the colour log ratio (at the reference density)
+    colour_bandwidth: float = 6.0   # colour units of the density kernels
+    max_chroma: float = 20.0      # regions more chromatic than this lean to not road ...
+    chroma_cost: float = 1.0      # ... by this per point and per max_chroma beyond it
+    contrast: float = 12.0        # colour scale of the contrast-sensitive smoothness
+    reference_density: float = 60.0   # points / m2 at which colour and smoothness balance as given
+    keep_size: float = 0.5        # a road component stays when this share of the largest ...
+    keep_kerb: float = 0.1        # ... or this share of the largest kerb evidence
+    min_share: float = 0.02       # and at least this share of all road points
+    absorb: float = 0.6           # a not-road group with this share of its boundary on road joins it
+    absorb_max: float = 0.1       # ... when not larger than this share of the road
+
+
+def kerb_relations(graph, w: Weights):
+    """Per pair: kerb strength (in edges), continuity strength (in edges), and which side is
+    upper (True: region pb is higher)."""
+    m = graph.edges
+    frac = (graph.up + graph.down) / np.maximum(m, 1e-9)
+    span = max(w.kerb_full - w.kerb_from, 1e-9)
+    kerb = m * np.clip((frac - w.kerb_from) / span, 0.0, 1.0)
+    smooth = m - kerb
+    return kerb, smooth, graph.up >= graph.down
+
+
+def _colour_log_ratio(mean, lower, upper, weight, bandwidth):
+    """log(p_lower / p_upper) at every region's mean colour: weighted histograms of the sample
+    regions' mean colours (cells of half the bandwidth), smoothed by a Gaussian of the
+    bandwidth, read at each region's cell."""
+    from scipy.ndimage import gaussian_filter
+    cell = bandwidth / 2.0
+    bins = int(np.ceil(256.0 / cell)) + 1
+    index = np.clip(np.floor(np.asarray(mean, np.float64) / cell).astype(np.int64), 0, bins - 1)
+
+    def density(sel, wt):
+        if len(sel) == 0 or wt.sum() <= 0:
+            return np.zeros(len(mean))
+        grid = np.zeros((bins, bins, bins))
+        np.add.at(grid, tuple(index[sel].T), wt)
+        grid = gaussian_filter(grid, sigma=2.0, mode="constant") / wt.sum()
+        return grid[tuple(index.T)]
+    floor = 1e-4 * (2.0 * np.pi * 4.0) ** -1.5      # about the old kernel floor, per cell
+    p_lo, p_up = density(lower, weight), density(upper, weight)
+    return np.clip(np.log((p_lo + floor) / (p_up + floor)), -3.0, 3.0)
+
+
+def _min_cut(unary_road, A, B, C, D, pa, pb, n):
+    """Minimise sum unary_road * x + sum E_pair(x_a, x_b) over binary x (1 = road), with pair
+    energies A=E(0,0), B=E(0,1), C=E(1,0), D=E(1,1), B + C >= A + D. Returns bool (n,)."""
+    lin = unary_road.copy()
+    np.add.at(lin, pa, C - A)
+    np.add.at(lin, pb, D - C)
+    pair = B + C - A - D
+    source, sink = n, n + 1
+    pos, neg, pe = lin > 0, lin < 0, pair > 0
+    rows = np.concatenate([np.flatnonzero(pos), np.full(int(neg.sum()), source), pb[pe]])
+    cols = np.concatenate([np.full(int(pos.sum()), sink), np.flatnonzero(neg), pa[pe]])
+    cap = np.concatenate([lin[pos], -lin[neg], pair[pe]])
+    scale = 100.0 / max(1.0, cap.max(initial=0.0) / 2.0e7)   # integer capacities below 2^31
+    cap = np.maximum(np.rint(cap * scale), 0).astype(np.int64)
+    graph = csr_matrix((cap.astype(np.int32), (rows, cols)), shape=(n + 2, n + 2))
+    graph.sum_duplicates()
+    flow = maximum_flow(graph, source, sink)
+    residual = graph - flow.flow
+    residual.data[residual.data < 0] = 0
+    residual.eliminate_zeros()
+    reached = breadth_first_order(residual, source, directed=True, return_predecessors=False)
+    road = np.zeros(n + 2, bool)
+    road[reached] = True
+    return road[:n]
+
+
+def label_road(graph, density: float, w: Weights = Weights()):
+    """bool per region (road) and facts for the summary."""
+    n = graph.n_regions
+    pa, pb, count = graph.pa, graph.pb, graph.count
+    if n == 0:
+        return np.zeros(0, bool), {"kerb_edges": 0}
+    kerb, smooth, b_upper = kerb_relations(graph, w)
+    mean = graph.mean_colour()
+    chroma_vec = mean - mean.mean(axis=1, keepdims=True)
+    chroma = np.sqrt((chroma_vec ** 2).sum(axis=1))
+    d_chroma = np.sqrt(((chroma_vec[pa] - chroma_vec[pb]) ** 2).sum(axis=1))
+    d_bright = np.abs(mean[pa].mean(axis=1) - mean[pb].mean(axis=1))
+    contrast = np.exp(-0.5 * (d_chroma / w.contrast) ** 2) * \
+        (0.3 + 0.7 * np.exp(-0.5 * (d_bright / (3.0 * w.contrast)) ** 2))
+    potts = w.smooth * contrast * smooth
+    k_up_b = kerb * b_upper
+    k_up_a = kerb * ~b_upper
+    A = w.lower_road * kerb
+    B = potts + w.upper_road * k_up_b
+    C = potts + w.upper_road * k_up_a
+    D = w.both_road * kerb
+    # the scene's own road colour, from the two sides of clear kerbs
+    clear = kerb > 0.5 * graph.edges
+    lower = np.where(b_upper, pa, pb)[clear]
+    upper = np.where(b_upper, pb, pa)[clear]
+    llr = _colour_log_ratio(mean, lower, upper, kerb[clear], w.colour_bandwidth)
+    # points per area vs edges per boundary length: keep the balance at any density
+    balance = np.sqrt(w.reference_density / max(density, 1e-6))
+    unary = -count * w.colour * balance * llr + count * w.chroma_cost * \
+        np.maximum(chroma - w.max_chroma, 0.0) / w.max_chroma
+    road = _min_cut(unary, A, B, C, D, pa, pb, n)
+    cut_road = int(count[road].sum())
+    road = _keep_components(graph, road, kerb, b_upper, w)
+    road, absorbed = _absorb_enclosed(graph, road, kerb, w)
+    facts = {"regions": int(n), "kerb_edges": float(round(kerb.sum(), 1)),
+             "kerb_pairs": int(clear.sum()), "road_points_after_cut": cut_road,
+             "absorbed_points": int(absorbed)}
+    return road, facts
+
+
+def _components(n, pa, pb, link):
+    g = csr_matrix((np.ones(int(link.sum())), (pa[link], pb[link])), shape=(n, n))
+    return connected_components(g, directed=False)
+
+
+def _keep_components(graph, road, kerb, b_upper, w):
+    """Road components over continuous pairs: keep the large ones and those with kerb
+    evidence (road below a kerb whose upper side is not road)."""
+    n, pa, pb = graph.n_regions, graph.pa, graph.pb
+    nc, comp = _components(n, pa, pb, road[pa] & road[pb] & (kerb < 0.5 * graph.edges))
+    size = np.bincount(comp, weights=graph.count * road, minlength=nc)
+    lower = np.where(b_upper, pa, pb)
+    upper = np.where(b_upper, pb, pa)
+    ev = (kerb > 0) & road[lower] & ~road[upper]
+    evidence = np.bincount(comp[lower[ev]], weights=kerb[ev], minlength=nc)
+    if not road.any():
+        return road
+    keep = ((size >= w.keep_size * size.max()) | (evidence >= w.keep_kerb * max(evidence.max(), 1e-9))) \
+        & (size >= w.min_share * size.sum())
+    return road & keep[comp]
+
+
+def _absorb_enclosed(graph, road, kerb, w, rounds=3):
+    """Not-road groups (over continuous pairs) whose boundary is mostly road, with no kerb
+    between them and the road, and not too large, join the road."""
+    n, pa, pb, m = graph.n_regions, graph.pa, graph.pb, graph.edges
+    before = graph.count[road].sum()
+    road = road.copy()
+    for _ in range(rounds):
+        if not road.any():
+            break
+        ng, group = _components(n, pa, pb, ~road[pa] & ~road[pb] & (kerb < 0.5 * m))
+        group = np.where(road, -1, group)
+        ga, gb = group[pa], group[pb]
+        leaving = ga != gb
+        sides = [(ga, leaving & (ga >= 0)), (gb, leaving & (gb >= 0))]
+        boundary = sum(np.bincount(g[s], weights=m[s], minlength=ng) for g, s in sides)
+        onto_road = sum(np.bincount(g[s & road[o]], weights=m[s & road[o]], minlength=ng)
+                        for (g, s), o in zip(sides, (pb, pa)))
+        kerb_road = sum(np.bincount(g[s & road[o]], weights=kerb[s & road[o]], minlength=ng)
+                        for (g, s), o in zip(sides, (pb, pa)))
+        size = np.bincount(group[group >= 0], weights=graph.count[group >= 0], minlength=ng)
+        take = (onto_road >= w.absorb * np.maximum(boundary, 1e-9)) & (kerb_road <= 0.2 * onto_road) \
+            & (size <= w.absorb_max * graph.count[road].sum())
+        if not take.any():
+            break
+        road |= (group >= 0) & take[np.maximum(group, 0)]
+    return road, graph.count[road].sum() - before

@@ -1,0 +1,120 @@
+"""Region-level R6 kernels: filters against numpy, the edge list, and region merging equal to
+its sequential reference (CPU and Vulkan)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roadx_ti.kernels import regions
+from roadx_ti.kernels.neighbors import knn
+from tests.references import merge_regions_reference
+
+
+def _plane(n=3000, noise=0.01, seed=0, step=0.0):
+    rng = np.random.default_rng(seed)
+    xy = rng.random((n, 2)) * 20
+    z = 0.02 * xy[:, 0] + 0.01 * xy[:, 1] + rng.normal(0, noise, n) + np.where(xy[:, 0] > 10, step, 0.0)
+    return np.column_stack([xy, z]).astype(np.float32)
+
+
+def test_neighbourhood_median_is_numpys(ti_arch):
+    xyz = _plane(800)
+    idx, _ = knn(xyz, 8)
+    idx[::7, 3] = -1                                   # dropped entries are skipped
+    values = np.random.default_rng(1).random((800, 3)).astype(np.float32) * 255
+    got = regions.neighbourhood_median(values, idx)
+    rows = [np.concatenate([[i], r[r >= 0]]) for i, r in enumerate(idx)]
+    want = np.stack([np.median(values[r], axis=0) for r in rows]).astype(np.float32)
+    assert np.allclose(got, want, atol=1e-4)
+
+
+def test_mode_heights_keep_a_kerb_and_remove_noise(ti_arch):
+    xyz = _plane(6000, noise=0.03, step=0.12)
+    idx, dist = knn(xyz, 12)
+    grad = regions.coarse_gradient(xyz, 2.5)
+    grad[:] = (0.02, 0.01)                             # the true slope (cells straddling the kerb tilt)
+    z = regions.mode_heights(xyz, idx, grad, 2.5 * 0.03)
+    trend = 0.02 * xyz[:, 0] + 0.01 * xyz[:, 1]
+    away = np.abs(xyz[:, 0] - 10) > 1.0
+    residual = z - trend - np.where(xyz[:, 0] > 10, 0.12, 0.0)
+    assert np.std(residual[away]) < 0.45 * 0.03        # noise drops ...
+    near = (np.abs(xyz[:, 0] - 10) < 0.5) & (np.abs(xyz[:, 0] - 10) > 0.15)
+    side = xyz[:, 0] > 10                              # ... and the step stays a step
+    assert np.median(np.abs(residual[near])) < 0.03
+    assert np.mean(np.abs(residual[near & side]) < 0.06) > 0.9
+
+
+def test_graph_edges_hold_each_undirected_edge_once():
+    xyz = _plane(500)
+    idx, dist = knn(xyz, 6)
+    a, b = regions.graph_edges(idx, dist, np.inf)
+    assert (a < b).all()
+    pairs = set(zip(a.tolist(), b.tolist()))
+    assert len(pairs) == len(a)
+    want = {(min(i, j), max(i, j)) for i in range(500) for j in idx[i]}
+    assert pairs == want
+
+
+def test_coarse_gradient_of_a_plane():
+    xyz = _plane(5000, noise=0.0)
+    g = regions.coarse_gradient(xyz, 2.5)
+    assert np.allclose(g, (0.02, 0.01), atol=1e-4)
+
+
+def _merge_case(seed, n=220):
+    rng = np.random.default_rng(seed)
+    xyz = _plane(n, seed=seed)
+    idx, dist = knn(xyz, 6)
+    a, b = regions.graph_edges(idx, dist, np.inf)
+    # patches of colour with noise, quantised to 1/64 so that costs do not tie by rounding
+    patch = (xyz[:, 0] // 7 + 3 * (xyz[:, 1] // 7)).astype(int)
+    base = rng.random((patch.max() + 1, 3)) * 60 + 80
+    colour = np.round((base[patch] + rng.normal(0, 1.5, (n, 3))) * 64) / 64
+    steps = rng.random(len(a)) < 0.08
+    up = np.where(steps & (rng.random(len(a)) < 0.5), 0.9, 0.0)
+    down = np.where(steps & (up == 0), 0.9, 0.0)
+    return n, a, b, up, down, colour.astype(np.float32)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_region_merging_equals_the_sequential_reference(ti_arch, seed):
+    n, a, b, up, down, colour = _merge_case(seed)
+    levels, chroma, veto, min_size = (2.0, 4.0, 8.0), 10.0, 0.1, 4
+    graph = regions.merge_regions_by_colour(n, a, b, up, down, colour, levels, chroma, veto, min_size)
+    ref = merge_regions_reference(n, a, b, up, down, colour, levels, chroma, veto, min_size)
+    # the same partition: both labellings renumbered by first appearance
+    def canonical(lab):
+        _, first, inv = np.unique(lab, return_index=True, return_inverse=True)
+        rank = np.empty(len(first), int)
+        rank[np.argsort(first)] = np.arange(len(first))
+        return rank[inv.ravel()]
+    assert np.array_equal(canonical(graph.label), canonical(ref))
+    assert graph.n_regions < n                         # something merged
+    assert np.array_equal(graph.count, np.bincount(graph.label).astype(float))
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_region_merging_host_rounds_equal_the_kernel_rounds(seed):
+    n, a, b, up, down, colour = _merge_case(seed, n=3000)
+    args = (n, a, b, up, down, colour, (1.5, 3.0, 6.0), 10.0, 0.1, 6)
+    device = regions.merge_regions_by_colour(*args, host=False)
+    host = regions.merge_regions_by_colour(*args, host=True)
+    assert np.array_equal(device.label, host.label)
+    assert np.array_equal(device.count, host.count) and np.array_equal(device.colour_sum, host.colour_sum)
+    assert device.n_regions < n / 5
+
+
+def test_region_merging_respects_the_step_veto():
+    n, a, b, up, down, colour = _merge_case(0)
+    colour[:] = 100.0                                  # one colour everywhere: only steps separate
+    cut = np.zeros(len(a))
+    left = (np.arange(n) % 2)[a] != (np.arange(n) % 2)[b]
+    xyz = _plane(n, seed=0)
+    across = (xyz[a, 0] > 10) != (xyz[b, 0] > 10)      # every edge across x = 10 steps up
+    cut[across] = 1.0
+    graph = regions.merge_regions_by_colour(n, a, b, cut, np.zeros(len(a)), colour, (1.0,), 10.0, 0.1)
+    side = xyz[:, 0] > 10
+    for r in range(graph.n_regions):
+        members = side[graph.label == r]
+        assert members.all() or not members.any()
+    assert left.any()
