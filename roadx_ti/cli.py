@@ -123,7 +123,9 @@ def main(argv: list[str] | None = None) -> int:
 
 # --------------------------------------------------------------------------------------- run
 def _output_paths(out: Path) -> dict:
-    stem = out.with_suffix("")
+    from roadx_ti.config import output_stem
+
+    stem = output_stem(out)
     return {"summary": Path(f"{stem}.summary.json"), "config": Path(f"{stem}.config.yaml"),
             "png": Path(f"{stem}.png")}
 
@@ -155,6 +157,9 @@ def cmd_run(args) -> int:
     if cfg.tiled:
         return _run_tiled(cfg, out, args)
     _prepare_output(out, cfg.input.paths)
+    if cfg.dtm_path() is not None:
+        _make_parent(cfg.dtm_path())
+        io.check_output_path(cfg.dtm_path(), cfg.input.paths)
     stage_specs = cfg.stage_list() or pipelines.default_stage_specs(cfg.pipeline)
 
     t0 = time.perf_counter()
@@ -207,13 +212,13 @@ def cmd_run(args) -> int:
         acc = summary["accuracy"]
         log.info("accuracy vs classes %s: type I %.2f %%, type II %.2f %%, total %.2f %%, kappa %.4f",
                  cfg.truth_classes, 100 * acc["type1"], 100 * acc["type2"], 100 * acc["total"], acc["kappa"])
-    if cfg.output.dtm:
+    dtm_path = cfg.dtm_path()
+    if dtm_path is not None:
         if "cloth" not in ctx.facts:
-            log.warning("output.dtm: no cloth stage ran, so there is no DTM to write")
+            if cfg.output.dtm is not None:
+                log.warning("output.dtm: no cloth stage ran, so there is no DTM to write")
         else:
-            from roadx_ti import dtm
-            dtm.write(cfg.output.dtm, *ctx.facts["cloth"])
-            summary["dtm"] = cfg.output.dtm
+            summary["dtm"] = _write_dtm(dtm_path, ctx.facts["cloth"], cloud)
     from roadx_ti import report
     report.write_json(paths["summary"], summary)
     with io.atomic_output(paths["config"]) as tmp:
@@ -226,6 +231,23 @@ def cmd_run(args) -> int:
     log.info("wrote %s (+ %s, %s%s) in %.2f s total", out, paths["summary"].name, paths["config"].name,
              f", {paths['png'].name}" if cfg.output.report_png else "", time.perf_counter() - t0)
     return EXIT_OK
+
+
+def _write_dtm(path: Path, cloth, cloud) -> dict:
+    """The cloth as a DTM raster over the occupied space, with the input's CRS."""
+    from roadx_ti import dtm
+    from roadx_ti.io import crs as io_crs
+
+    result, origin = cloth
+    crs = io_crs.of_cloud(cloud)
+    if crs is None and path.suffix.lower() != ".npy":
+        log.warning("%s: the input has no CRS, so the DTM carries none", path)
+    t = dtm.write(path, result, origin, xy=cloud.xyz[:, :2], crs=crs)
+    log.info("wrote DTM %s: %d x %d cells of %g m over the occupied area (%d with data)", path,
+             t["cols"], t["rows"], t["cell_size"], t["valid_cells"])
+    return {"path": str(path), "crs": crs.to_string() if crs else None, "cell_size": t["cell_size"],
+            "rows": t["rows"], "cols": t["cols"], "x_lower_left": t["x_lower_left"],
+            "y_lower_left": t["y_lower_left"], "valid_cells": t["valid_cells"]}
 
 
 def _prepare_output(out: Path, inputs) -> None:
@@ -244,6 +266,8 @@ def _run_tiled(cfg, out: Path, args) -> int:
 
     if not cfg.input.paths:
         raise config.ConfigError("config error: input: tiled runs read files; give input.paths or --input")
+    if cfg.output.dtm not in (None, False):
+        log.warning("output.dtm: tiled runs write no DTM (each tile has its own cloth); run untiled for one")
     if cfg.output.mode == "merged":
         _make_parent(out)
         io.check_output_path(out, [f.path for f in tiling.catalog(cfg.input.paths)])

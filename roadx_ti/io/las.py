@@ -351,27 +351,39 @@ def read_header_las(path):
         raise _las_error(path, exc) from exc
 
 
-def crs_text(header) -> str | None:
-    """The CRS as 'NAME (EPSG:n)', 'NAME' or 'EPSG:n' from the WKT or GeoTIFF-keys VLRs (no pyproj)."""
+def crs_records(header) -> tuple[str | None, list[int]]:
+    """The CRS records of a header: (the OGC WKT text, or None; the EPSG codes of its GeoTIFF keys:
+    projected or geographic first, then vertical, when present)."""
     for vlr in list(header.vlrs) + list(header.evlrs or []):
         wkt = getattr(vlr, "string", None)
         if isinstance(wkt, bytes):
             wkt = wkt.decode("ascii", "replace")
-        if isinstance(wkt, str) and wkt.strip():
-            name = re.match(r'\s*\w+\[\s*"([^"]*)"', wkt)
-            codes = re.findall(r'(?:AUTHORITY|ID)\[\s*"EPSG"\s*,\s*"?(\d+)"?\s*\]', wkt)
-            parts = [name.group(1)] if name else []
-            if codes:
-                parts.append(f"(EPSG:{codes[-1]})" if parts else f"EPSG:{codes[-1]}")
-            if parts:
-                return " ".join(parts)
+        if isinstance(wkt, str) and wkt.strip(" \0\n"):
+            return wkt.strip(" \0\n"), []
     for vlr in header.vlrs:
         keys = {k.id: k for k in getattr(vlr, "geo_keys", [])}
-        for key_id in (3072, 2048):    # ProjectedCSTypeGeoKey, GeographicTypeGeoKey
+        codes = []
+        for key_id in (3072, 2048, 4096):  # ProjectedCSType, GeographicType, VerticalCSType GeoKeys
             key = keys.get(key_id)
             if key is not None and key.tiff_tag_location == 0 and 0 < key.value_offset < 32767:
-                return f"EPSG:{key.value_offset}"
-    return None
+                if key_id != 2048 or not codes:
+                    codes.append(int(key.value_offset))
+        if codes:
+            return None, codes
+    return None, []
+
+
+def crs_text(header) -> str | None:
+    """The CRS as 'NAME (EPSG:n)', 'NAME' or 'EPSG:n' from the WKT or GeoTIFF-keys VLRs (no pyproj)."""
+    wkt, codes = crs_records(header)
+    if wkt:
+        name = re.match(r'\s*\w+\[\s*"([^"]*)"', wkt)
+        codes = re.findall(r'(?:AUTHORITY|ID)\[\s*"EPSG"\s*,\s*"?(\d+)"?\s*\]', wkt)
+        parts = [name.group(1)] if name else []
+        if codes:
+            parts.append(f"(EPSG:{codes[-1]})" if parts else f"EPSG:{codes[-1]}")
+        return " ".join(parts) or None
+    return "+".join(f"EPSG:{c}" for c in codes) or None
 
 
 def info_las(path) -> dict:
