@@ -257,8 +257,16 @@ def _prepare_output(out: Path, inputs) -> None:
     if out.suffix.lower() not in io.EXTENSIONS:
         raise UsageError(f"{out}: unknown output format {out.suffix or '(no extension)'!r}; "
                          f"use one of {' '.join(io.EXTENSIONS)}")
+    _check_copc(out)
     _make_parent(out)
     io.check_output_path(out, inputs)
+
+
+def _check_copc(out: Path) -> None:
+    from roadx_ti.io import copc
+
+    if copc.is_copc_path(out) and copc.missing():
+        raise UsageError(f"{out}: {copc.missing()}")
 
 
 def _run_tiled(cfg, out: Path, args) -> int:
@@ -269,6 +277,10 @@ def _run_tiled(cfg, out: Path, args) -> int:
     if cfg.output.dtm not in (None, False):
         log.warning("output.dtm: tiled runs write no DTM (each tile has its own cloth); run untiled for one")
     if cfg.output.mode == "merged":
+        from roadx_ti.io.copc import is_copc_path
+        if is_copc_path(out):
+            raise UsageError(f"{out}: tiled runs write LAS/LAZ, not COPC yet (COPC needs all points at "
+                             "once); write .laz and convert it, e.g. pdal translate x.laz x.copc.laz")
         _make_parent(out)
         io.check_output_path(out, [f.path for f in tiling.catalog(cfg.input.paths)])
     else:

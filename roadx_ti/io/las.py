@@ -324,7 +324,8 @@ def _las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> l
 
 
 def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=None) -> None:
-    """Write ``cloud`` to LAS, or LAZ when ``path`` ends with .laz, atomically."""
+    """Write ``cloud`` to LAS, LAZ when ``path`` ends with .laz, COPC when it ends with
+    .copc.laz (io/copc.py), atomically."""
     index = point_index(subset, cloud.n)
     if cloud.las is not None:
         las = _las_from_record(path, cloud.las, cloud.n, classification, extra_dims, index)
@@ -332,6 +333,10 @@ def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subse
         las = _las_from_arrays(path, cloud, classification, extra_dims, index)
     if len(las.points) > MAX_POINTS:
         raise _too_many(path, len(las.points))
+    from . import copc
+    if copc.is_copc_path(path):
+        copc.write(path, las)
+        return
     compress = str(path).lower().endswith(".laz")
     with atomic_output(path) as tmp:
         with open(tmp, "wb") as f:
