@@ -224,9 +224,8 @@ def cmd_run(args) -> int:
     with io.atomic_output(paths["config"]) as tmp:
         Path(tmp).write_text(config.dump(cfg))
     if cfg.output.report_png:
-        predicted = result.classification == target
-        report.top_view_png(paths["png"], cloud.xyz[:, :2], result.classification,
-                            truth=truth, predicted=predicted if truth is not None else None,
+        report.top_view_png(paths["png"], cloud, result.classification == target, truth=truth,
+                            target=cfg.pipeline,
                             title=f"{cfg.pipeline}: {Path(cloud.source).name if cloud.las else cloud.source}")
     log.info("wrote %s (+ %s, %s%s) in %.2f s total", out, paths["summary"].name, paths["config"].name,
              f", {paths['png'].name}" if cfg.output.report_png else "", time.perf_counter() - t0)
