@@ -54,8 +54,10 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("--truth-classes", required=True, metavar="C[,C..]")
     e.add_argument("--pred-classes", metavar="C[,C..]", help="default: the truth classes")
 
-    i = sub.add_parser("info", help="point count, bounds, attributes, colour, classes")
+    i = sub.add_parser("info", help="CRS, point count, bounds, density and spacing, colour / intensity / "
+                       "NIR / returns, classes (JSON; --text for a person)")
     i.add_argument("path")
+    i.add_argument("--text", action="store_true", help="print for a person instead of JSON")
 
     s = sub.add_parser("synth", help="write a synthetic scene with truth classes")
     s.add_argument("--kind", required=True, choices=["uav-road", "als-roof"])
@@ -350,7 +352,10 @@ def cmd_eval(args) -> int:
 def cmd_info(args) -> int:
     from roadx_ti import io
 
-    print(json.dumps(io.info(args.path), indent=2, default=str))
+    from roadx_ti.io.describe import text
+
+    info = io.info(args.path)
+    print(text(info) if args.text else json.dumps(info, indent=2, default=str, allow_nan=False))
     return EXIT_OK
 
 

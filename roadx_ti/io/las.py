@@ -392,29 +392,39 @@ def crs_text(header) -> str | None:
 
 
 def info_las(path) -> dict:
-    """Header facts plus the class histogram, colour and exact bounds from a chunked pass."""
+    """Header facts plus, from a chunked pass, the class histogram, exact bounds, point density,
+    and the ranges of colour, intensity, NIR and return numbers (io/describe.py)."""
+    from .describe import Survey, classes
+
     try:
         with laspy.open(path) as reader:
             h = reader.header
             fmt = h.point_format
-            has_rgb = "red" in fmt.dimension_names
+            dims = set(fmt.dimension_names)
+            has_rgb = "red" in dims
+            survey = Survey({"intensity", "return_number", "number_of_returns"}
+                            | ({"rgb"} if has_rgb else set()) | ({"nir"} if "nir" in dims else set()))
             hist = np.zeros(256, dtype=np.int64)
             lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-            color_max, seen = 0, 0
+            seen = 0
             for chunk in reader.chunk_iterator(CHUNK_POINTS):
                 seen += len(chunk)
                 hist += np.bincount(np.asarray(chunk.classification, dtype=np.uint8), minlength=256)
                 xyz = _world_xyz(chunk)
                 lo, hi = np.minimum(lo, xyz.min(axis=0)), np.maximum(hi, xyz.max(axis=0))
-                if has_rgb:
-                    color_max = max(color_max, int(np.asarray(chunk.red).max()),
-                                    int(np.asarray(chunk.green).max()), int(np.asarray(chunk.blue).max()))
+                survey.add(xyz[:, :2], {
+                    "rgb": np.column_stack([chunk.red, chunk.green, chunk.blue]) if has_rgb else None,
+                    "intensity": np.asarray(chunk.intensity), "nir": np.asarray(chunk.nir) if "nir" in dims else None,
+                    "return_number": np.asarray(chunk.return_number),
+                    "number_of_returns": np.asarray(chunk.number_of_returns)})
             if seen != h.point_count:
                 raise fail(path, f"truncated LAS/LAZ file: {seen} of {h.point_count} points could be read")
     except InputError:
         raise
     except LAS_ERRORS as exc:
         raise _las_error(path, exc) from exc
+    facts = survey.facts(seen)
+    color_max = facts["fields"]["rgb"]["max"] or 0
     if not has_rgb:
         color, depth = "none", None
     elif color_max == 0:
@@ -422,19 +432,22 @@ def info_las(path) -> dict:
     else:
         depth = 16 if color_max > 255 else 8
         color = f"{depth}-bit"
+    histogram = {int(c): int(k) for c, k in enumerate(hist) if k}
     return {
         "path": str(path),
         "format": "copc" if is_copc(h) else ("laz" if str(path).lower().endswith(".laz") else "las"),
         "point_count": int(h.point_count),
+        "crs": crs_text(h),
         "bounds": {"min": lo.tolist(), "max": hi.tolist()} if seen else None,
+        **facts,
         "point_format": int(fmt.id),
         "version": str(h.version),
         "dimensions": list(fmt.dimension_names),
         "extra_dimensions": list(fmt.extra_dimension_names),
         "color": color,
         "color_depth": depth,
-        "class_histogram": {int(c): int(k) for c, k in enumerate(hist) if k},
-        "crs": crs_text(h),
+        "classes": classes(histogram),
+        "class_histogram": histogram,
         "scales": [float(s) for s in h.scales],
         "offsets": [float(o) for o in h.offsets],
     }
