@@ -228,10 +228,17 @@ def cmd_run(args) -> int:
     if cfg.output.report_png:
         report.top_view_png(paths["png"], cloud, result.classification == target, truth=truth,
                             target=cfg.pipeline,
-                            title=f"{cfg.pipeline}: {Path(cloud.source).name if cloud.las else cloud.source}")
+                            title=f"{cfg.pipeline} pipeline: {_scene_name(cfg, cloud)}")
     log.info("wrote %s (+ %s, %s%s) in %.2f s total", out, paths["summary"].name, paths["config"].name,
              f", {paths['png'].name}" if cfg.output.report_png else "", time.perf_counter() - t0)
     return EXIT_OK
+
+
+def _scene_name(cfg, cloud) -> str:
+    if cloud.las is not None or cfg.input.paths:
+        return Path(cloud.source).name
+    s = cfg.input.synthetic
+    return f"synthetic {s.kind} scene, {s.points:,} points, seed {s.seed}"
 
 
 def _write_dtm(path: Path, cloth, cloud) -> dict:
