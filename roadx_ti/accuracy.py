@@ -130,7 +130,7 @@ def _merged(paths):
 
 
 def evaluate(task: str, out: Path, points: int) -> list[dict]:
-    from roadx_ti import config, metrics, pipelines, report
+    from roadx_ti import config, metrics, pipelines
     from roadx_ti.stages.base import StageContext
 
     target = config.PIPELINE_TARGET[task]
@@ -158,12 +158,20 @@ def evaluate(task: str, out: Path, points: int) -> list[dict]:
                                                   "removed_other", "unlabelled_target", "labelled_other",
                                                   "seconds")} for s in result.stages]}
         results.append(row)
-        slug = "".join(c if c.isalnum() else "_" for c in name).strip("_")[:60]
-        report.top_view_png(out / f"{task}_{slug}.png", cloud.xyz[:, :2], result.classification,
-                            truth=truth, predicted=predicted, title=f"{task}: {name}")
+        dataset_png(out, task, name, cloud, truth, predicted)
         log.info("%s: type I %.2f %%, type II %.2f %%, total %.2f %%, kappa %.4f (%.1f s)", name,
                  100 * row["type1"], 100 * row["type2"], 100 * row["total"], row["kappa"], seconds)
     return results
+
+
+def dataset_png(out: Path, task: str, name: str, cloud, truth, predicted) -> Path:
+    """The scene / truth / prediction / errors picture of one dataset: OUT/TASK_NAME.png."""
+    from roadx_ti import report
+
+    slug = "".join(c if c.isalnum() else "_" for c in name).strip("_")[:60]
+    path = out / f"{task}_{slug}.png"
+    report.top_view_png(path, cloud, predicted, truth=truth, target=task, title=f"{task}: {name}")
+    return path
 
 
 def _pct(v):

@@ -54,8 +54,10 @@ def _parser() -> argparse.ArgumentParser:
     e.add_argument("--truth-classes", required=True, metavar="C[,C..]")
     e.add_argument("--pred-classes", metavar="C[,C..]", help="default: the truth classes")
 
-    i = sub.add_parser("info", help="point count, bounds, attributes, colour, classes")
+    i = sub.add_parser("info", help="CRS, point count, bounds, density and spacing, colour / intensity / "
+                       "NIR / returns, classes (JSON; --text for a person)")
     i.add_argument("path")
+    i.add_argument("--text", action="store_true", help="print for a person instead of JSON")
 
     s = sub.add_parser("synth", help="write a synthetic scene with truth classes")
     s.add_argument("--kind", required=True, choices=["uav-road", "uav-road-v1", "als-roof"])
@@ -123,7 +125,9 @@ def main(argv: list[str] | None = None) -> int:
 
 # --------------------------------------------------------------------------------------- run
 def _output_paths(out: Path) -> dict:
-    stem = out.with_suffix("")
+    from roadx_ti.config import output_stem
+
+    stem = output_stem(out)
     return {"summary": Path(f"{stem}.summary.json"), "config": Path(f"{stem}.config.yaml"),
             "png": Path(f"{stem}.png")}
 
@@ -155,6 +159,9 @@ def cmd_run(args) -> int:
     if cfg.tiled:
         return _run_tiled(cfg, out, args)
     _prepare_output(out, cfg.input.paths)
+    if cfg.dtm_path() is not None:
+        _make_parent(cfg.dtm_path())
+        io.check_output_path(cfg.dtm_path(), cfg.input.paths)
     stage_specs = cfg.stage_list() or pipelines.default_stage_specs(cfg.pipeline)
 
     t0 = time.perf_counter()
@@ -208,25 +215,48 @@ def cmd_run(args) -> int:
         acc = summary["accuracy"]
         log.info("accuracy vs classes %s: type I %.2f %%, type II %.2f %%, total %.2f %%, kappa %.4f",
                  cfg.truth_classes, 100 * acc["type1"], 100 * acc["type2"], 100 * acc["total"], acc["kappa"])
-    if cfg.output.dtm:
+    dtm_path = cfg.dtm_path()
+    if dtm_path is not None:
         if "cloth" not in ctx.facts:
-            log.warning("output.dtm: no cloth stage ran, so there is no DTM to write")
+            if cfg.output.dtm is not None:
+                log.warning("output.dtm: no cloth stage ran, so there is no DTM to write")
         else:
-            from roadx_ti import dtm
-            dtm.write(cfg.output.dtm, *ctx.facts["cloth"])
-            summary["dtm"] = cfg.output.dtm
+            summary["dtm"] = _write_dtm(dtm_path, ctx.facts["cloth"], cloud)
     from roadx_ti import report
     report.write_json(paths["summary"], summary)
     with io.atomic_output(paths["config"]) as tmp:
         Path(tmp).write_text(config.dump(cfg))
     if cfg.output.report_png:
-        predicted = result.classification == target
-        report.top_view_png(paths["png"], cloud.xyz[:, :2], result.classification,
-                            truth=truth, predicted=predicted if truth is not None else None,
-                            title=f"{cfg.pipeline}: {Path(cloud.source).name if cloud.las else cloud.source}")
+        report.top_view_png(paths["png"], cloud, result.classification == target, truth=truth,
+                            target=cfg.pipeline,
+                            title=f"{cfg.pipeline} pipeline: {_scene_name(cfg, cloud)}")
     log.info("wrote %s (+ %s, %s%s) in %.2f s total", out, paths["summary"].name, paths["config"].name,
              f", {paths['png'].name}" if cfg.output.report_png else "", time.perf_counter() - t0)
     return EXIT_OK
+
+
+def _scene_name(cfg, cloud) -> str:
+    if cloud.las is not None or cfg.input.paths:
+        return Path(cloud.source).name
+    s = cfg.input.synthetic
+    return f"synthetic {s.kind} scene, {s.points:,} points, seed {s.seed}"
+
+
+def _write_dtm(path: Path, cloth, cloud) -> dict:
+    """The cloth as a DTM raster over the occupied space, with the input's CRS."""
+    from roadx_ti import dtm
+    from roadx_ti.io import crs as io_crs
+
+    result, origin = cloth
+    crs = io_crs.of_cloud(cloud)
+    if crs is None and path.suffix.lower() != ".npy":
+        log.warning("%s: the input has no CRS, so the DTM carries none", path)
+    t = dtm.write(path, result, origin, xy=cloud.xyz[:, :2], crs=crs)
+    log.info("wrote DTM %s: %d x %d cells of %g m over the occupied area (%d with data)", path,
+             t["cols"], t["rows"], t["cell_size"], t["valid_cells"])
+    return {"path": str(path), "crs": crs.to_string() if crs else None, "cell_size": t["cell_size"],
+            "rows": t["rows"], "cols": t["cols"], "x_lower_left": t["x_lower_left"],
+            "y_lower_left": t["y_lower_left"], "valid_cells": t["valid_cells"]}
 
 
 def _prepare_output(out: Path, inputs) -> None:
@@ -236,8 +266,16 @@ def _prepare_output(out: Path, inputs) -> None:
     if out.suffix.lower() not in io.EXTENSIONS:
         raise UsageError(f"{out}: unknown output format {out.suffix or '(no extension)'!r}; "
                          f"use one of {' '.join(io.EXTENSIONS)}")
+    _check_copc(out)
     _make_parent(out)
     io.check_output_path(out, inputs)
+
+
+def _check_copc(out: Path) -> None:
+    from roadx_ti.io import copc
+
+    if copc.is_copc_path(out) and copc.missing():
+        raise UsageError(f"{out}: {copc.missing()}")
 
 
 def _run_tiled(cfg, out: Path, args) -> int:
@@ -245,7 +283,13 @@ def _run_tiled(cfg, out: Path, args) -> int:
 
     if not cfg.input.paths:
         raise config.ConfigError("config error: input: tiled runs read files; give input.paths or --input")
+    if cfg.output.dtm not in (None, False):
+        log.warning("output.dtm: tiled runs write no DTM (each tile has its own cloth); run untiled for one")
     if cfg.output.mode == "merged":
+        from roadx_ti.io.copc import is_copc_path
+        if is_copc_path(out):
+            raise UsageError(f"{out}: tiled runs write LAS/LAZ, not COPC yet (COPC needs all points at "
+                             "once); write .laz and convert it, e.g. pdal translate x.laz x.copc.laz")
         _make_parent(out)
         io.check_output_path(out, [f.path for f in tiling.catalog(cfg.input.paths)])
     else:
@@ -316,7 +360,10 @@ def cmd_eval(args) -> int:
 def cmd_info(args) -> int:
     from roadx_ti import io
 
-    print(json.dumps(io.info(args.path), indent=2, default=str))
+    from roadx_ti.io.describe import text
+
+    info = io.info(args.path)
+    print(text(info) if args.text else json.dumps(info, indent=2, default=str, allow_nan=False))
     return EXIT_OK
 
 

@@ -14,6 +14,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from roadx_ti import backend as _backend
+from roadx_ti.dtm import FORMATS as DTM_FORMATS
 from roadx_ti.stages import REGISTRY, stage_class
 
 
@@ -42,8 +43,11 @@ class OutputConfig(_Strict):
         "all", description="all: every input point in input order (label transfer for points "
         "skipped by downsampling); processed: only the points that reached the last stage")
     report_png: bool = Field(True, description="write a top-view PNG beside the output")
-    dtm: str | None = Field(None, description="write the cloth of the last cloth stage as a DTM raster "
-                            "(.asc ESRI ASCII grid, or .npy with a .json transform)")
+    dtm: str | bool | None = Field(None, description="write the cloth of the last cloth stage as a DTM "
+                                   "raster: a path (.tif/.tiff GeoTIFF with the input's CRS, .asc ESRI "
+                                   "ASCII grid + .prj, .npy + .json transform); true: NAME.dtm.tif beside "
+                                   "the output; false: none; null (default): NAME.dtm.tif for the ground "
+                                   "pipeline, none for the others")
     mode: Literal["merged", "per-file"] = Field(
         "merged", description="tiled runs over several files: one merged output in input order, or "
         "one output per input file in the output folder")
@@ -52,8 +56,9 @@ class OutputConfig(_Strict):
     @field_validator("dtm")
     @classmethod
     def _dtm_format(cls, value):
-        if value is not None and Path(value).suffix.lower() not in (".asc", ".npy"):
-            raise ValueError("a DTM is written as .asc (ESRI ASCII grid) or .npy (+ .json transform)")
+        if isinstance(value, str) and Path(value).suffix.lower() not in DTM_FORMATS:
+            raise ValueError("a DTM is written as .tif/.tiff (GeoTIFF), .asc (ESRI ASCII grid + .prj) "
+                             "or .npy (+ .json transform)")
         return value
 
 
@@ -130,9 +135,28 @@ class RunConfig(_Strict):
                 or any(Path(p).is_dir() for p in self.input.paths)
                 or self.executor.workers is not None or bool(self.executor.scheduler))
 
+    def dtm_path(self) -> Path | None:
+        """Where the DTM goes: output.dtm's path, NAME.dtm.tif beside the output (true, or unset
+        in the ground pipeline), or None."""
+        dtm = self.output.dtm
+        if dtm is False or (dtm is None and self.pipeline != "ground"):
+            return None
+        if isinstance(dtm, str):
+            return Path(dtm)
+        return Path(f"{output_stem(self.output.path)}.dtm.tif")
+
     @property
     def truth_classes(self) -> list[int]:
         return self.evaluate.truth_classes or [PIPELINE_TARGET[self.pipeline]]
+
+
+def output_stem(path) -> Path:
+    """The output's path without its format suffix (``.copc.laz`` counts as one): the sidecar
+    files are STEM.summary.json, STEM.config.yaml, STEM.png, STEM.dtm.tif."""
+    path = Path(path)
+    if path.name.lower().endswith(".copc.laz"):
+        return path.with_name(path.name[:-len(".copc.laz")])
+    return path.with_suffix("")
 
 
 def _one_line(exc: ValidationError, prefix: str = "") -> str:

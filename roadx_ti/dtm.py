@@ -1,47 +1,127 @@
 """The cloth of the cloth simulation filter as a DTM raster.
 
-Formats: ``.asc`` (ESRI ASCII grid: GDAL, QGIS and ArcGIS read it as is) and ``.npy`` (float32
-heights, row 0 = south, with a ``.json`` sidecar holding the world transform). Particles are cell
-centres: cell (row, col) covers world x in [x_ll + col*res, x_ll + (col+1)*res).
+Formats: ``.tif`` / ``.tiff`` (GeoTIFF through rasterio, float32, deflate, with the input's CRS),
+``.asc`` (ESRI ASCII grid, with a ``.prj`` holding the CRS: GDAL, QGIS and ArcGIS read both) and
+``.npy`` (float32 heights, row 0 = south, NaN where there is no data, with a ``.json`` sidecar
+holding the world transform and the CRS as WKT). Particles are cell centres: cell (row, col)
+covers world x in [x_ll + col*res, x_ll + (col+1)*res).
+
+Given the points (``xy``), the raster covers the occupied space only: the cells within
+``footprint.scene``'s cell size of a point of the scene (stray groups of points left out); the
+grid is cropped to them and every other cell is nodata. The cloth itself spans the bounding box
+of the points it was run on, buffer included.
 """
 from __future__ import annotations
 
 import json
+import logging
+import math
 from pathlib import Path
 
 import numpy as np
 
 from roadx_ti.io.atomic import atomic_output
 
-FORMATS = (".asc", ".npy")
+FORMATS = (".tif", ".tiff", ".asc", ".npy")
+NODATA = -9999.0
+log = logging.getLogger("roadx_ti")
 
 
-def transform(result, origin) -> dict:
-    """World placement of the cloth grid (float64 math on the cloud's origin)."""
+def transform(result, origin, window=None) -> dict:
+    """World placement of the cloth grid, or of ``window`` = (row0, col0, rows, cols) of it
+    (float64 math on the cloud's origin)."""
     res = float(result.resolution)
-    rows, cols = result.cloth_z.shape
-    return {"x_lower_left": float(origin[0]) + float(result.x0) - res / 2,
-            "y_lower_left": float(origin[1]) + float(result.y0) - res / 2,
+    row0, col0, rows, cols = window or (0, 0, *result.cloth_z.shape)
+    return {"x_lower_left": float(origin[0]) + float(result.x0) + (col0 - 0.5) * res,
+            "y_lower_left": float(origin[1]) + float(result.y0) + (row0 - 0.5) * res,
             "cell_size": res, "rows": int(rows), "cols": int(cols), "row_order": "south_to_north",
             "z_offset": float(origin[2])}
 
 
-def write(path, result, origin) -> None:
+def occupied_window(result, xy: np.ndarray):
+    """(window (row0, col0, rows, cols), valid bool (rows, cols)): the cloth cells within the
+    scene's cell size of one of its points, and the smallest window of the grid holding them."""
+    from scipy.ndimage import binary_dilation
+
+    from roadx_ti import footprint
+
+    rows, cols = result.cloth_z.shape
+    res = float(result.resolution)
+    scene = footprint.scene(xy)
+    pts = np.asarray(xy)[scene.keep, :2].astype(np.float64)
+    c = np.rint((pts[:, 0] - result.x0) / res).astype(np.int64)
+    r = np.rint((pts[:, 1] - result.y0) / res).astype(np.int64)
+    inside = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
+    c, r = c[inside], r[inside]
+    if len(c) == 0:
+        return (0, 0, 0, 0), np.zeros((0, 0), bool)
+    reach = max(1, math.ceil(scene.cell / res))
+    row0, col0 = max(0, int(r.min()) - reach), max(0, int(c.min()) - reach)
+    row1, col1 = min(rows, int(r.max()) + reach + 1), min(cols, int(c.max()) + reach + 1)
+    occupied = np.zeros((row1 - row0, col1 - col0), bool)
+    occupied[r - row0, c - col0] = True
+    valid = binary_dilation(occupied, structure=np.ones((3, 3), bool), iterations=reach)
+    return (row0, col0, row1 - row0, col1 - col0), valid
+
+
+def write(path, result, origin, *, xy: np.ndarray | None = None, crs=None) -> dict:
+    """Write the cloth of ``result`` (a ClothResult on a cloud with local ``origin``) to ``path``.
+    ``xy``: the cloud's local xy, to crop the raster to the occupied space (None: the whole cloth).
+    ``crs``: a rasterio CRS, or None (the GeoTIFF and .asc then carry none). Returns the transform."""
     path = Path(path)
-    if path.suffix.lower() not in FORMATS:
+    suffix = path.suffix.lower()
+    if suffix not in FORMATS:
         raise ValueError(f"{path}: DTM formats are {', '.join(FORMATS)}")
-    t = transform(result, origin)
-    heights = result.cloth_z.astype(np.float64) + t["z_offset"]
-    if path.suffix.lower() == ".npy":
+    if xy is None:
+        window = (0, 0, *result.cloth_z.shape)
+        valid = np.ones(result.cloth_z.shape, bool)
+    else:
+        window, valid = occupied_window(result, xy)
+    row0, col0, rows, cols = window
+    t = transform(result, origin, window)
+    heights = result.cloth_z[row0:row0 + rows, col0:col0 + cols].astype(np.float64) + t["z_offset"]
+    heights[~valid] = np.nan
+    t["valid_cells"] = int(valid.sum())
+    if suffix == ".npy":
         with atomic_output(path) as tmp:
             np.save(tmp, heights.astype(np.float32))
-        sidecar = path.with_suffix(".json")
-        with atomic_output(sidecar) as tmp:
-            Path(tmp).write_text(json.dumps(t, indent=2) + "\n")
-        return
+        with atomic_output(path.with_suffix(".json")) as tmp:
+            Path(tmp).write_text(json.dumps(t | {"nodata": "NaN", "crs": crs.to_wkt() if crs else None},
+                                            indent=2) + "\n")
+        return t
+    north_first = np.where(np.isnan(heights), NODATA, heights)[::-1]
+    if suffix == ".asc":
+        _write_asc(path, north_first, t, crs)
+    else:
+        _write_geotiff(path, north_first, t, crs)
+    return t
+
+
+def _write_asc(path: Path, north_first: np.ndarray, t: dict, crs) -> None:
     header = (f"ncols {t['cols']}\nnrows {t['rows']}\nxllcorner {t['x_lower_left']:.6f}\n"
-              f"yllcorner {t['y_lower_left']:.6f}\ncellsize {t['cell_size']:.6f}\nNODATA_value -9999\n")
+              f"yllcorner {t['y_lower_left']:.6f}\ncellsize {t['cell_size']:.6f}\nNODATA_value {NODATA:g}\n")
     with atomic_output(path) as tmp:
         with open(tmp, "w") as f:
             f.write(header)
-            np.savetxt(f, heights[::-1], fmt="%.3f")   # ASCII grids list the north row first
+            np.savetxt(f, north_first, fmt="%.3f")   # ASCII grids list the north row first
+    if crs is not None:
+        from rasterio.enums import WktVersion
+
+        with atomic_output(path.with_suffix(".prj")) as tmp:
+            Path(tmp).write_text(crs.to_wkt(version=WktVersion.WKT1_ESRI) + "\n")
+
+
+def _write_geotiff(path: Path, north_first: np.ndarray, t: dict, crs) -> None:
+    import rasterio
+    from rasterio.transform import Affine
+
+    res = t["cell_size"]
+    profile = {"driver": "GTiff", "width": t["cols"], "height": t["rows"], "count": 1, "dtype": "float32",
+               "nodata": NODATA, "crs": crs,
+               "transform": Affine(res, 0.0, t["x_lower_left"], 0.0, -res, t["y_lower_left"] + t["rows"] * res),
+               "compress": "deflate", "predictor": 3, "tiled": True, "blockxsize": 256, "blockysize": 256}
+    with atomic_output(path) as tmp:
+        with rasterio.open(tmp, "w", **profile) as dst:
+            dst.write(north_first.astype(np.float32), 1)
+            dst.update_tags(AREA_OR_POINT="Area", TIFFTAG_SOFTWARE="roadx_ti (cloth simulation filter)")
+            dst.set_band_description(1, "cloth height (DTM)")

@@ -100,14 +100,18 @@ def write_tiny_config(folder, body: str = TINY_CONFIG) -> Path:
 
 
 def write_las(path, xyz, *, rgb=None, classification=None, scale=0.01, offset=None,
-              point_format=None, version="1.4") -> Path:
-    """A LAS/LAZ file of world coordinates ``xyz`` (float64 (n, 3)) written by laspy alone."""
+              point_format=None, version="1.4", crs_wkt=None) -> Path:
+    """A LAS/LAZ file of world coordinates ``xyz`` (float64 (n, 3)) written by laspy alone;
+    ``crs_wkt``: an OGC WKT CRS record (LAS 1.4)."""
     xyz = np.asarray(xyz, np.float64).reshape(-1, 3)
     if point_format is None:
         point_format = 7 if rgb is not None else 6
     header = laspy.LasHeader(point_format=point_format, version=version)
     header.scales = np.full(3, scale)
     header.offsets = (np.floor(xyz.min(axis=0)) if len(xyz) else np.zeros(3)) if offset is None else offset
+    if crs_wkt is not None:
+        header.vlrs.append(laspy.vlrs.known.WktCoordinateSystemVlr(crs_wkt))
+        header.global_encoding.wkt = True
     las = laspy.LasData(header)
     if len(xyz):
         las.x, las.y, las.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]

@@ -103,14 +103,19 @@ def write(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=No
 
 
 def info(path) -> dict:
-    """Summary of a file: point_count, bounds {min, max}, format, point_format and version (LAS),
-    dimensions, extra_dimensions, color ('16-bit', '8-bit', 'all-zero', 'none'), color_depth,
-    class_histogram {class: count}, crs (LAS, when it has one). LAS is scanned in chunks."""
+    """Summary of a file: point_count, crs (LAS, when it has one), bounds {min, max},
+    point_density / point_spacing / occupied_area (over occupied cells, not the bounding box),
+    fields {rgb, intensity, nir, return_number, number_of_returns: present, varies, min, max},
+    format, point_format and version (LAS), dimensions, extra_dimensions, color ('16-bit',
+    '8-bit', 'all-zero', 'none'), color_depth, classes [{class, name, points}], class_histogram
+    {class: count}. LAS is scanned in chunks. Strict JSON: no NaN (None where unknown)."""
     path = Path(path)
     kind = _kind(path)
     _check_input(path)
     if kind == "las":
         return _las.info_las(path)
+    from .describe import Survey, classes
+
     cloud = read(path)
     world = cloud.xyz.astype(np.float64) + cloud.origin
     dims = ["x", "y", "z"] + (["red", "green", "blue"] if cloud.rgb is not None else [])
@@ -120,15 +125,22 @@ def info(path) -> dict:
     if cloud.classification is not None:
         values, counts = np.unique(cloud.classification, return_counts=True)
         hist = {int(v): int(c) for v, c in zip(values, counts)}
+    survey = Survey()
+    returns = cloud.returns
+    survey.add(world[:, :2], {"rgb": cloud.rgb, "intensity": cloud.intensity,
+                              "nir": cloud.attributes.get("nir"),
+                              "return_number": None if returns is None else returns[:, 0],
+                              "number_of_returns": None if returns is None else returns[:, 1]})
     return {
         "path": str(path), "format": kind if kind != "text" else path.suffix.lower().lstrip("."),
-        "point_count": cloud.n,
+        "point_count": cloud.n, "crs": None,
         "bounds": {"min": world.min(axis=0).tolist(), "max": world.max(axis=0).tolist()} if cloud.n else None,
+        **survey.facts(cloud.n),
         "point_format": None, "version": None,
         "dimensions": dims + list(cloud.attributes), "extra_dimensions": list(cloud.attributes),
         "color": f"{cloud.color_depth}-bit" if cloud.rgb is not None else "none",
         "color_depth": cloud.color_depth if cloud.rgb is not None else None,
-        "class_histogram": hist, "crs": None,
+        "classes": classes(hist), "class_histogram": hist,
     }
 
 

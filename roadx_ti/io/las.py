@@ -324,7 +324,8 @@ def _las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> l
 
 
 def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=None) -> None:
-    """Write ``cloud`` to LAS, or LAZ when ``path`` ends with .laz, atomically."""
+    """Write ``cloud`` to LAS, LAZ when ``path`` ends with .laz, COPC when it ends with
+    .copc.laz (io/copc.py), atomically."""
     index = point_index(subset, cloud.n)
     if cloud.las is not None:
         las = _las_from_record(path, cloud.las, cloud.n, classification, extra_dims, index)
@@ -332,6 +333,10 @@ def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subse
         las = _las_from_arrays(path, cloud, classification, extra_dims, index)
     if len(las.points) > MAX_POINTS:
         raise _too_many(path, len(las.points))
+    from . import copc
+    if copc.is_copc_path(path):
+        copc.write(path, las)
+        return
     compress = str(path).lower().endswith(".laz")
     with atomic_output(path) as tmp:
         with open(tmp, "wb") as f:
@@ -351,53 +356,75 @@ def read_header_las(path):
         raise _las_error(path, exc) from exc
 
 
-def crs_text(header) -> str | None:
-    """The CRS as 'NAME (EPSG:n)', 'NAME' or 'EPSG:n' from the WKT or GeoTIFF-keys VLRs (no pyproj)."""
+def crs_records(header) -> tuple[str | None, list[int]]:
+    """The CRS records of a header: (the OGC WKT text, or None; the EPSG codes of its GeoTIFF keys:
+    projected or geographic first, then vertical, when present)."""
     for vlr in list(header.vlrs) + list(header.evlrs or []):
         wkt = getattr(vlr, "string", None)
         if isinstance(wkt, bytes):
             wkt = wkt.decode("ascii", "replace")
-        if isinstance(wkt, str) and wkt.strip():
-            name = re.match(r'\s*\w+\[\s*"([^"]*)"', wkt)
-            codes = re.findall(r'(?:AUTHORITY|ID)\[\s*"EPSG"\s*,\s*"?(\d+)"?\s*\]', wkt)
-            parts = [name.group(1)] if name else []
-            if codes:
-                parts.append(f"(EPSG:{codes[-1]})" if parts else f"EPSG:{codes[-1]}")
-            if parts:
-                return " ".join(parts)
+        if isinstance(wkt, str) and wkt.strip(" \0\n"):
+            return wkt.strip(" \0\n"), []
     for vlr in header.vlrs:
         keys = {k.id: k for k in getattr(vlr, "geo_keys", [])}
-        for key_id in (3072, 2048):    # ProjectedCSTypeGeoKey, GeographicTypeGeoKey
+        codes = []
+        for key_id in (3072, 2048, 4096):  # ProjectedCSType, GeographicType, VerticalCSType GeoKeys
             key = keys.get(key_id)
             if key is not None and key.tiff_tag_location == 0 and 0 < key.value_offset < 32767:
-                return f"EPSG:{key.value_offset}"
-    return None
+                if key_id != 2048 or not codes:
+                    codes.append(int(key.value_offset))
+        if codes:
+            return None, codes
+    return None, []
+
+
+def crs_text(header) -> str | None:
+    """The CRS as 'NAME (EPSG:n)', 'NAME' or 'EPSG:n' from the WKT or GeoTIFF-keys VLRs (no pyproj)."""
+    wkt, codes = crs_records(header)
+    if wkt:
+        name = re.match(r'\s*\w+\[\s*"([^"]*)"', wkt)
+        codes = re.findall(r'(?:AUTHORITY|ID)\[\s*"EPSG"\s*,\s*"?(\d+)"?\s*\]', wkt)
+        parts = [name.group(1)] if name else []
+        if codes:
+            parts.append(f"(EPSG:{codes[-1]})" if parts else f"EPSG:{codes[-1]}")
+        return " ".join(parts) or None
+    return "+".join(f"EPSG:{c}" for c in codes) or None
 
 
 def info_las(path) -> dict:
-    """Header facts plus the class histogram, colour and exact bounds from a chunked pass."""
+    """Header facts plus, from a chunked pass, the class histogram, exact bounds, point density,
+    and the ranges of colour, intensity, NIR and return numbers (io/describe.py)."""
+    from .describe import Survey, classes
+
     try:
         with laspy.open(path) as reader:
             h = reader.header
             fmt = h.point_format
-            has_rgb = "red" in fmt.dimension_names
+            dims = set(fmt.dimension_names)
+            has_rgb = "red" in dims
+            survey = Survey({"intensity", "return_number", "number_of_returns"}
+                            | ({"rgb"} if has_rgb else set()) | ({"nir"} if "nir" in dims else set()))
             hist = np.zeros(256, dtype=np.int64)
             lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-            color_max, seen = 0, 0
+            seen = 0
             for chunk in reader.chunk_iterator(CHUNK_POINTS):
                 seen += len(chunk)
                 hist += np.bincount(np.asarray(chunk.classification, dtype=np.uint8), minlength=256)
                 xyz = _world_xyz(chunk)
                 lo, hi = np.minimum(lo, xyz.min(axis=0)), np.maximum(hi, xyz.max(axis=0))
-                if has_rgb:
-                    color_max = max(color_max, int(np.asarray(chunk.red).max()),
-                                    int(np.asarray(chunk.green).max()), int(np.asarray(chunk.blue).max()))
+                survey.add(xyz[:, :2], {
+                    "rgb": np.column_stack([chunk.red, chunk.green, chunk.blue]) if has_rgb else None,
+                    "intensity": np.asarray(chunk.intensity), "nir": np.asarray(chunk.nir) if "nir" in dims else None,
+                    "return_number": np.asarray(chunk.return_number),
+                    "number_of_returns": np.asarray(chunk.number_of_returns)})
             if seen != h.point_count:
                 raise fail(path, f"truncated LAS/LAZ file: {seen} of {h.point_count} points could be read")
     except InputError:
         raise
     except LAS_ERRORS as exc:
         raise _las_error(path, exc) from exc
+    facts = survey.facts(seen)
+    color_max = facts["fields"]["rgb"]["max"] or 0
     if not has_rgb:
         color, depth = "none", None
     elif color_max == 0:
@@ -405,19 +432,22 @@ def info_las(path) -> dict:
     else:
         depth = 16 if color_max > 255 else 8
         color = f"{depth}-bit"
+    histogram = {int(c): int(k) for c, k in enumerate(hist) if k}
     return {
         "path": str(path),
         "format": "copc" if is_copc(h) else ("laz" if str(path).lower().endswith(".laz") else "las"),
         "point_count": int(h.point_count),
+        "crs": crs_text(h),
         "bounds": {"min": lo.tolist(), "max": hi.tolist()} if seen else None,
+        **facts,
         "point_format": int(fmt.id),
         "version": str(h.version),
         "dimensions": list(fmt.dimension_names),
         "extra_dimensions": list(fmt.extra_dimension_names),
         "color": color,
         "color_depth": depth,
-        "class_histogram": {int(c): int(k) for c, k in enumerate(hist) if k},
-        "crs": crs_text(h),
+        "classes": classes(histogram),
+        "class_histogram": histogram,
         "scales": [float(s) for s in h.scales],
         "offsets": [float(o) for o in h.offsets],
     }

@@ -1,0 +1,32 @@
+"""The CRS of a cloud read from LAS, as a rasterio CRS (rasterio bundles GDAL and PROJ): the WKT
+record as it is, or the EPSG codes of the GeoTIFF keys (horizontal, + vertical when present)."""
+from __future__ import annotations
+
+import logging
+
+from .las import crs_records
+
+log = logging.getLogger(__name__)
+
+
+def of_header(header):
+    """rasterio CRS of a LAS header, or None when it has no (usable) CRS record."""
+    from rasterio.crs import CRS
+    from rasterio.errors import CRSError
+
+    wkt, codes = crs_records(header)
+    try:
+        if wkt:
+            return CRS.from_wkt(wkt)
+        if codes:
+            return CRS.from_user_input("+".join(f"EPSG:{c}" for c in codes) if len(codes) > 1
+                                       else f"EPSG:{codes[0]}")
+    except CRSError as exc:
+        log.warning("the input's CRS record cannot be read (%s); it is left out of the outputs",
+                    " ".join(str(exc).split()))
+    return None
+
+
+def of_cloud(cloud):
+    """rasterio CRS of a cloud (LAS input only), or None."""
+    return of_header(cloud.las.header) if cloud.las is not None else None
