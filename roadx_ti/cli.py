@@ -16,6 +16,7 @@ import numpy as np
 
 from roadx_ti import __version__
 from roadx_ti.config import parse_point_count
+from roadx_ti.errors import DataError  # a data mistake: exit 1
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
 log = logging.getLogger("roadx_ti")
@@ -23,10 +24,6 @@ log = logging.getLogger("roadx_ti")
 
 class UsageError(Exception):
     """A usage mistake (exit 2)."""
-
-
-class DataError(Exception):
-    """A data mistake (exit 1)."""
 
 
 def _parser() -> argparse.ArgumentParser:

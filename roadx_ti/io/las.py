@@ -66,11 +66,20 @@ def _world_xyz(points) -> np.ndarray:
                             np.asarray(points.z, dtype=np.float64)])
 
 
-def _local_origin(header_mins, header_maxs, scales, world: np.ndarray) -> np.ndarray:
+def _local_origin(header_mins, header_maxs, scales, world: np.ndarray, whole: bool = True) -> np.ndarray:
+    """The floor of the header's minimum corner; of the points' when the header box does not hold
+    them; for a whole file (not a window, whose origin must not depend on the window), of the
+    points' without the isolated ones when there are (roadx_ti.isolation.local_origin)."""
     hmin, hmax = np.asarray(header_mins, np.float64), np.asarray(header_maxs, np.float64)
     if len(world) == 0:
         return np.floor(hmin) if np.all(np.isfinite(hmin)) else np.zeros(3)
     lo, hi = world.min(axis=0), world.max(axis=0)
+    if whole and np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)):
+        from roadx_ti.isolation import SMALL_PART, isolated
+
+        far = isolated(world, SMALL_PART)
+        if far is not None:
+            return np.floor(world[~far].min(axis=0))
     tol = np.abs(np.asarray(scales, np.float64))
     if np.all(np.isfinite(hmin)) and np.all(lo >= hmin - tol) and np.all(hi <= hmax + tol):
         return np.floor(hmin)
@@ -144,7 +153,7 @@ def read_las(path, bounds=None, origin=None) -> Cloud:
         raise _las_error(path, exc) from exc
     world = _world_xyz(las.points)
     if origin is None:
-        origin = _local_origin(hmins, hmaxs, las.header.scales, world)
+        origin = _local_origin(hmins, hmaxs, las.header.scales, world, whole=bounds is None)
     origin = np.asarray(origin, dtype=np.float64).reshape(3)
     rgb, depth = _las_rgb(las)
     return Cloud(xyz=(world - origin).astype(np.float32), origin=origin, rgb=rgb, color_depth=depth,

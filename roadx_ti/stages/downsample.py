@@ -2,12 +2,18 @@
 
 Both are 'subsample' stages: the skipped points are not decided here; after the pipeline they take
 the label of their nearest processed point (METHODS.md R1, label transfer).
+
+Uniform downsampling never skips an isolated point (roadx_ti.isolation: a part of at most
+SMALL_PART points, more than 100 m from the rest): its nearest processed point would be that far
+away, and its stride must not shift the sample of the other points (which are sampled exactly as
+in a cloud without it).
 """
 from __future__ import annotations
 
 import numpy as np
 from pydantic import Field, model_validator
 
+from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
 from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
 
@@ -28,14 +34,22 @@ class UniformDownsample(Stage):
     Options = UniformOptions
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
-        n = cloud.n
-        # a ratio > 0 keeps at least one point: rounding must not leave a tiny cloud unprocessed
-        target = self.options.target_points or max(int(round(n * self.options.ratio)), min(n, 1))
         from roadx_ti.kernels.downsample import uniform_sample
 
-        keep = np.zeros(n, bool)
-        keep[uniform_sample(cloud.xyz, min(target, n))[0]] = True
-        return StageResult(keep=keep, mode="subsample", info={"target_points": int(keep.sum())})
+        every = self.options.target_points is None and self.options.ratio == 1.0
+        isolated = None if every or not cloud.n else isolation.isolated(cloud.xyz, isolation.SMALL_PART)
+        rest = None if isolated is None else np.flatnonzero(~isolated)
+        n = cloud.n if rest is None else len(rest)
+        # a ratio > 0 keeps at least one point: rounding must not leave a tiny cloud unprocessed
+        target = self.options.target_points or max(int(round(n * self.options.ratio)), min(n, 1))
+        keep = np.zeros(cloud.n, bool)
+        if rest is None:
+            keep[uniform_sample(cloud.xyz, min(target, n))[0]] = True
+            return StageResult(keep=keep, mode="subsample", info={"target_points": int(keep.sum())})
+        keep[rest[uniform_sample(cloud.xyz[rest], min(target, n))[0]]] = True
+        keep[isolated] = True
+        return StageResult(keep=keep, mode="subsample", info={"target_points": int(keep.sum()),
+                                                              "isolated": int(isolated.sum())})
 
 
 class VoxelOptions(StageOptions):

@@ -1,8 +1,13 @@
-"""R4 grid min-height slope / height-difference filter (kernel: roadx_ti.kernels.grid_min)."""
+"""R4 grid min-height slope / height-difference filter (kernel: roadx_ti.kernels.grid_min).
+
+The grid's corner is the points' minimum without isolated points (roadx_ti.isolation), so that
+far strays neither move the cells of the others nor size the grid (the kernel's cells are sparse
+when a dense grid would not fit)."""
 from __future__ import annotations
 
 from pydantic import Field
 
+from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.grid_min import slope_filter
 from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
@@ -23,7 +28,8 @@ class GridSlope(Stage):
         if cloud.n == 0:
             return StageResult()
         o = self.options
-        keep, height = slope_filter(cloud.xyz, o.step, o.slope_max, o.dh_max)
+        keep, height = slope_filter(cloud.xyz, o.step, o.slope_max, o.dh_max,
+                                    origin=isolation.corner_without_isolated(cloud.xyz))
         keep = keep.astype(bool)
         return StageResult(keep=keep, point_data={"height_above_cell_min": height},
                            info={"removed": int((~keep).sum())})
