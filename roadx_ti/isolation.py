@@ -39,14 +39,18 @@ class Parts:
                                 # None when there is one part (or none)
     sizes: np.ndarray           # int64 points per part
 
-    def isolated(self, max_points: int) -> np.ndarray | None:
+    def isolated(self, max_points: int, survey_points: int | None = None) -> np.ndarray | None:
         """bool per point: its part holds at most ``max_points`` points. None when no point is
-        isolated, and also when no part is larger (a small cloud is not isolated from itself)."""
-        if self.label is None or not (self.sizes > max_points).any():
-            return None
+        isolated, and also when no part is larger (a small cloud is not isolated from itself),
+        unless the cloud is a tile of a survey of more than ``max_points`` points
+        (``survey_points``): a tile holding only a stray point then sees it isolated, as the
+        whole run does."""
+        larger = bool((self.sizes > max_points).any()) or (survey_points or 0) > max_points
         small = self.sizes <= max_points
-        if not small.any():
+        if not larger or not small.any():
             return None
+        if self.label is None:
+            return np.ones(int(self.sizes.sum()), bool)
         return small[self.label]
 
     def members(self) -> list[np.ndarray]:
@@ -144,9 +148,17 @@ def parts(points, gap: float = GAP) -> Parts:
     return Parts(count, label, sizes)
 
 
-def isolated(points, max_points: int, gap: float = GAP) -> np.ndarray | None:
-    """bool per point: it lies in a part of at most ``max_points`` points (None: no such point)."""
-    return parts(points, gap).isolated(max_points)
+def isolated(points, max_points: int, gap: float = GAP, survey_points: int | None = None) -> np.ndarray | None:
+    """bool per point: it lies in a part of at most ``max_points`` points (None: no such point;
+    ``survey_points``: see Parts.isolated)."""
+    return parts(points, gap).isolated(max_points, survey_points)
+
+
+def isolated_in(xyz, max_points: int, ctx) -> np.ndarray | None:
+    """``isolated`` for a stage's cloud: a tile's survey size from its context (SURVEY_POINTS)."""
+    from roadx_ti.stages.base import SURVEY_POINTS
+
+    return isolated(xyz, max_points, survey_points=getattr(ctx, "facts", {}).get(SURVEY_POINTS))
 
 
 def local_origin(world) -> np.ndarray:
@@ -164,11 +176,11 @@ def local_origin(world) -> np.ndarray:
     return np.floor(lowest if far is None else world[~far].min(axis=0))
 
 
-def corner_without_isolated(xyz):
+def corner_without_isolated(xyz, ctx=None):
     """(x_min, y_min) of the points without the isolated ones (SMALL_PART), as a grid corner;
-    None when no point is isolated (the grid then takes the points' own minimum)."""
-    far = isolated(xyz, SMALL_PART) if len(xyz) else None
-    if far is None:
+    None when no point is isolated, or all are (the grid then takes the points' own minimum)."""
+    far = isolated_in(xyz, SMALL_PART, ctx) if len(xyz) else None
+    if far is None or far.all():
         return None
     lowest = np.asarray(xyz)[~far, :2].min(axis=0)
     return float(lowest[0]), float(lowest[1])

@@ -252,3 +252,45 @@ def test_a_cloth_larger_than_its_points_justify_is_refused_in_one_line():
     message = str(err.value)
     assert "\n" not in message and "cloth_ground" in message
     assert "27983 x 27994 m" in message and "stages.cloth_ground.cloth_resolution" in message and "--tile-size" in message
+
+
+# ----------------------------------------------------------------------------------- tiling
+
+def test_plan_allocates_nothing_per_grid_cell():
+    from roadx_ti import tiling
+    # a header box of 10^6 km at 10 m tiles: 10^8 x 10^8 cells; only the two scanned ones are tiles
+    files = [tiling.CatalogFile("a.las", (0.0, 0.0, 1e9, 1e9), 1000)]
+    occupied = lambda f, grid: grid.key(np.array([0, grid.cols - 1]), np.array([0, grid.rows - 1]))  # noqa: E731
+    plan = tiling.plan_tiles(files, 10.0, 5.0, scan=occupied)
+    assert plan.grid.cols == plan.grid.rows == 10**8 + 1
+    assert len(plan.tiles) == 2 and plan.tiles[1].core[0] == 1e9
+    assert plan.describe()["x_edges"] is None                     # not listed: 10^8 grid lines
+    assert list(plan.tile_index(np.array([5.0, 1e9 + 1, 500.0]), np.array([5.0, 1e9 + 1, 5.0]))) == [0, 1, -1]
+    with pytest.raises(ValueError, match="larger --tile-size"):
+        tiling.plan_tiles(files, 10.0, 5.0)                        # unscanned: refused, not allocated
+
+
+def test_tiled_run_with_strays_tiles_only_occupied_space(tmp_path):
+    import laspy
+
+    from cli_helpers import bumpy_ground, write_las
+    from roadx_ti import config, tiling
+    cfg = config.from_mapping({"pipeline": "ground", "backend": "cpu",
+                               "stages": [{"cloth_ground": {"cloth_resolution": 1.0}}]})
+    plain_xyz = bumpy_ground(3000, side=40.0)
+    stray_xyz, others = with_strays(plain_xyz - plain_xyz.min(axis=0))
+    stray_xyz = stray_xyz + plain_xyz.min(axis=0)
+    offset = np.floor(plain_xyz.min(axis=0))
+    runs = {}
+    for name, xyz in (("plain", plain_xyz), ("stray", stray_xyz)):
+        src = write_las(tmp_path / f"{name}.laz", xyz, offset=offset)
+        t0 = time.perf_counter()
+        summary = tiling.run_catalog(cfg, [src], tmp_path / f"{name}_out.laz", tile_size=20.0, progress=False)
+        runs[name] = (summary, time.perf_counter() - t0,
+                      np.asarray(laspy.read(tmp_path / f"{name}_out.laz").classification))
+    plain, stray = runs["plain"], runs["stray"]
+    assert stray[0]["tiling"]["columns"] > 1000                    # the header box spans 20 km
+    assert stray[0]["tiling"]["tiles"] <= plain[0]["tiling"]["tiles"] + 2   # occupied cores only
+    assert stray[1] < 3 * plain[1] + 10
+    assert (stray[2][others] == plain[2]).mean() >= 0.999
+    assert (stray[2][~others] == 1).all()                          # alone in their tiles: not ground

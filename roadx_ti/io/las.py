@@ -360,6 +360,23 @@ def read_header_las(path):
         raise _las_error(path, exc) from exc
 
 
+def iter_xy_las(path):
+    """World x, y (float64) chunk by chunk; a truncated file is an InputError."""
+    try:
+        with laspy.open(path) as reader:
+            _check_header(path, reader.header)
+            seen = 0
+            for chunk in reader.chunk_iterator(CHUNK_POINTS):
+                seen += len(chunk)
+                yield np.asarray(chunk.x, np.float64), np.asarray(chunk.y, np.float64)
+            if seen != reader.header.point_count:
+                raise fail(path, f"truncated LAS/LAZ file: {seen} of {reader.header.point_count} points could be read")
+    except InputError:
+        raise
+    except LAS_ERRORS as exc:
+        raise _las_error(path, exc) from exc
+
+
 def crs_text(header) -> str | None:
     """The CRS as 'NAME (EPSG:n)', 'NAME' or 'EPSG:n' from the WKT or GeoTIFF-keys VLRs (no pyproj)."""
     for vlr in list(header.vlrs) + list(header.evlrs or []):

@@ -46,6 +46,8 @@ class StageResult:
 
 # ctx.facts key: local z of the lowest point of the whole survey a cloud was cut from (tiled runs)
 SURVEY_Z_MIN = "survey_z_min"
+# ctx.facts key: number of points of the whole survey a cloud was cut from (tiled runs)
+SURVEY_POINTS = "survey_points"
 
 
 @dataclass

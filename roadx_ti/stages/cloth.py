@@ -81,12 +81,12 @@ class Cloths:
     """The cloths of a cloud's parts: ground and height above the cloth per point (NaN for
     isolated points, which no cloth lies under), and the largest part's cloth (for the DTM)."""
     ground: np.ndarray
-    largest: ClothResult
+    largest: ClothResult | None  # None when every point is isolated
     parts: list                  # (point indices, ClothResult) per simulated part
     isolated: int = 0
 
     def height_above(self, xyz) -> np.ndarray:
-        if len(self.parts) == 1 and len(self.parts[0][0]) == len(xyz):
+        if self.largest is not None and len(self.parts) == 1 and len(self.parts[0][0]) == len(xyz):
             return self.largest.height_above(xyz)
         out = np.full(len(xyz), np.nan, np.float32)
         for index, result in self.parts:
@@ -95,7 +95,7 @@ class Cloths:
 
     @property
     def iterations(self) -> int:
-        return max(int(r.iterations) for _, r in self.parts)
+        return max((int(r.iterations) for _, r in self.parts), default=0)
 
 
 def _simulate(options: ClothOptions, xyz: np.ndarray, origin, ctx: StageContext, stage: str) -> ClothResult:
@@ -119,7 +119,7 @@ def _simulate(options: ClothOptions, xyz: np.ndarray, origin, ctx: StageContext,
 
 def _run_cloth(options: ClothOptions, cloud: Cloud, ctx: StageContext, stage: str) -> Cloths:
     xyz = cloud.xyz
-    isolated = isolation.isolated(xyz, isolation.SMALL_PART)
+    isolated = isolation.isolated_in(xyz, isolation.SMALL_PART, ctx)
     kept = np.arange(cloud.n) if isolated is None else np.flatnonzero(~isolated)
     split = isolation.parts(xyz[kept, :2] if isolated is not None else xyz[:, :2])
     ground = np.zeros(cloud.n, bool)
@@ -130,12 +130,22 @@ def _run_cloth(options: ClothOptions, cloud: Cloud, ctx: StageContext, stage: st
         result = _simulate(options, xyz if whole else xyz[index], cloud.origin, ctx, stage)
         ground[index] = result.ground
         results.append((index, result))
-    largest = max(results, key=lambda r: len(r[0]))[1]
+    largest = max(results, key=lambda r: len(r[0]))[1] if results else None
     return Cloths(ground, largest, results, 0 if isolated is None else int(isolated.sum()))
 
 
+def _keep_for_dtm(result: Cloths, cloud: Cloud, ctx: StageContext) -> None:
+    """The largest part's cloth, for a DTM export (output.dtm); a raster over all parts would be
+    sized by their extent."""
+    if result.largest is not None:
+        ctx.facts["cloth"] = (result.largest, cloud.origin)
+        if len(result.parts) > 1:
+            ctx.facts["cloth_parts"] = len(result.parts)
+
+
 def _info(result: Cloths) -> dict:
-    info = {"ground": int(result.ground.sum()), "cloth_shape": list(result.largest.cloth_z.shape),
+    shape = list(result.largest.cloth_z.shape) if result.largest is not None else [0, 0]
+    info = {"ground": int(result.ground.sum()), "cloth_shape": shape,
             "iterations": result.iterations}
     if len(result.parts) > 1:
         info["parts"] = len(result.parts)
@@ -153,7 +163,7 @@ class ClothSmooth(Stage):
         if cloud.n == 0:
             return StageResult()
         result = _run_cloth(self.options, cloud, ctx, self.name)
-        ctx.facts["cloth"] = (result.largest, cloud.origin)   # for a DTM export (output.dtm)
+        _keep_for_dtm(result, cloud, ctx)
         return StageResult(keep=result.ground, info=_info(result))
 
 
@@ -166,7 +176,7 @@ class ClothGround(Stage):
         if cloud.n == 0:
             return StageResult()
         result = _run_cloth(self.options, cloud, ctx, self.name)
-        ctx.facts["cloth"] = (result.largest, cloud.origin)   # for a DTM export (output.dtm)
+        _keep_for_dtm(result, cloud, ctx)
         keep = ~result.ground
         # aligned with the working points; the pipeline narrows it to the kept ones
         height = result.height_above(cloud.xyz)

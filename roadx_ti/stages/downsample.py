@@ -37,7 +37,7 @@ class UniformDownsample(Stage):
         from roadx_ti.kernels.downsample import uniform_sample
 
         every = self.options.target_points is None and self.options.ratio == 1.0
-        isolated = None if every or not cloud.n else isolation.isolated(cloud.xyz, isolation.SMALL_PART)
+        isolated = None if every or not cloud.n else isolation.isolated_in(cloud.xyz, isolation.SMALL_PART, ctx)
         rest = None if isolated is None else np.flatnonzero(~isolated)
         n = cloud.n if rest is None else len(rest)
         # a ratio > 0 keeps at least one point: rounding must not leave a tiny cloud unprocessed

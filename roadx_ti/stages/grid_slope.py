@@ -29,7 +29,7 @@ class GridSlope(Stage):
             return StageResult()
         o = self.options
         keep, height = slope_filter(cloud.xyz, o.step, o.slope_max, o.dh_max,
-                                    origin=isolation.corner_without_isolated(cloud.xyz))
+                                    origin=isolation.corner_without_isolated(cloud.xyz, ctx))
         keep = keep.astype(bool)
         return StageResult(keep=keep, point_data={"height_above_cell_min": height},
                            info={"removed": int((~keep).sum())})

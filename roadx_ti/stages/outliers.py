@@ -41,7 +41,7 @@ class StatisticalOutlierRemoval(Stage):
             return StageResult(info={"skipped": "fewer than 2 points"})
         if k < o.k:
             ctx.log.warning("sor: k = %d but only %d points: using k = %d", o.k, cloud.n, k)
-        isolated = isolation.isolated(cloud.xyz, k)
+        isolated = isolation.isolated_in(cloud.xyz, k, ctx)
         if isolated is None:
             keep = np.asarray(sor_keep(cloud.xyz, k, o.std_ratio, mode=o.mode, convention=o.convention), bool)
             return StageResult(keep=keep, info={"removed": int((~keep).sum()), "k": k})

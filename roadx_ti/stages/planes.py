@@ -35,14 +35,14 @@ class RansacOptions(StageOptions):
                                "reference is the minimum over the 3 x 3 cells around a point's cell")
 
 
-def _height_above_local_minimum(xyz, cell_size):
+def _height_above_local_minimum(xyz, cell_size, ctx=None):
     """z minus the lowest z of the 3 x 3 cells around each point's cell (per-cell minima from the
     grid-min kernel; the 3 x 3 minimum over the occupied cells on the host, found by their keys,
     so a bounding box inflated by far points costs nothing)."""
     from roadx_ti.isolation import corner_without_isolated
     from roadx_ti.kernels.grid_min import cell_minimum, dense_fits, sparse_cell_minimum
 
-    origin = corner_without_isolated(xyz)       # far strays move no cell of the others
+    origin = corner_without_isolated(xyz, ctx)       # far strays move no cell of the others
     if dense_fits(xyz, cell_size, origin):
         cell, cell_lowest, n_cols = cell_minimum(xyz, cell_size, origin)
         occupied = np.flatnonzero(cell_lowest >= 0)
@@ -87,7 +87,7 @@ class RansacPlanes(Stage):
 
         o = self.options
         xyz = cloud.xyz
-        height_above_ground = _height_above_local_minimum(xyz, o.ground_cell)
+        height_above_ground = _height_above_local_minimum(xyz, o.ground_cell, ctx)
         keep = np.ones(cloud.n, bool)
         planes = []
         cos_tilt = math.cos(math.radians(o.max_tilt_deg))

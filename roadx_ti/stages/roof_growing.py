@@ -95,7 +95,7 @@ class RoofGrowing(Stage):
             rough = np.asarray(ctx.point_data["curvature"]) >= o.returns_exempt_curvature
             foliage_returns = penetrated & rough
             active = (~foliage_returns).astype(np.uint8)
-        isolated = isolation.isolated(cloud.xyz, int(knn.shape[1]))
+        isolated = isolation.isolated_in(cloud.xyz, int(knn.shape[1]), ctx)
         if isolated is not None:
             active = ~isolated if active is None else (active != 0) & ~isolated
             active = active.astype(np.uint8)
