@@ -6,7 +6,6 @@ never a traceback.
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import sys
 import time
@@ -14,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from roadx_ti import __version__
+from roadx_ti import __version__, jsonio
 from roadx_ti.config import parse_point_count
 from roadx_ti.errors import DataError  # a data mistake: exit 1
 
@@ -212,7 +211,7 @@ def cmd_run(args) -> int:
             dtm.write(cfg.output.dtm, *ctx.facts["cloth"])
             summary["dtm"] = cfg.output.dtm
     from roadx_ti import report
-    report.write_json(paths["summary"], summary)
+    jsonio.write(paths["summary"], summary)
     with io.atomic_output(paths["config"]) as tmp:
         Path(tmp).write_text(config.dump(cfg))
     if cfg.output.report_png:
@@ -304,7 +303,7 @@ def cmd_eval(args) -> int:
             raise DataError(f"{name} has no classification")
     result = scores(class_mask(truth.classification, truth_classes), class_mask(pred.classification, pred_classes))
     result["truth_classes"], result["pred_classes"] = truth_classes, pred_classes
-    print(json.dumps(result))
+    print(jsonio.dumps(result))
     return EXIT_OK
 
 
@@ -312,7 +311,7 @@ def cmd_eval(args) -> int:
 def cmd_info(args) -> int:
     from roadx_ti import io
 
-    print(json.dumps(io.info(args.path), indent=2, default=str))
+    print(jsonio.dumps(io.info(args.path), indent=2))
     return EXIT_OK
 
 

@@ -6,11 +6,11 @@ centres: cell (row, col) covers world x in [x_ll + col*res, x_ll + (col+1)*res).
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
+from roadx_ti import jsonio
 from roadx_ti.io.atomic import atomic_output
 
 FORMATS = (".asc", ".npy")
@@ -37,7 +37,7 @@ def write(path, result, origin) -> None:
             np.save(tmp, heights.astype(np.float32))
         sidecar = path.with_suffix(".json")
         with atomic_output(sidecar) as tmp:
-            Path(tmp).write_text(json.dumps(t, indent=2) + "\n")
+            Path(tmp).write_text(jsonio.dumps(t, indent=2) + "\n")
         return
     header = (f"ncols {t['cols']}\nnrows {t['rows']}\nxllcorner {t['x_lower_left']:.6f}\n"
               f"yllcorner {t['y_lower_left']:.6f}\ncellsize {t['cell_size']:.6f}\nNODATA_value -9999\n")

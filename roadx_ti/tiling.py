@@ -799,7 +799,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     written to summary_path, default '<output stem>.summary.json' or '<folder>/summary.json')
     holds the plan, per-tile timings and counts. Raises TileError (nothing written) when a tile
     fails after its retries."""
-    from roadx_ti import __version__, io, pipelines, report
+    from roadx_ti import __version__, io, jsonio, pipelines
     from roadx_ti.config import PIPELINE_TARGET
 
     log = log or log_default
@@ -902,7 +902,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
         summary["truth_classes"] = cfg.truth_classes
         summary["accuracy"] = scores(truth, np.concatenate(merge.pred))
     summary["summary_path"] = str(summary_path)
-    report.write_json(summary_path, summary)
+    jsonio.write(summary_path, summary)
     log.info("wrote %s (%d points, %d tiles, %s) in %.2f s", ", ".join(summary["outputs"][:3])
              + (" ..." if len(outputs) > 3 else ""), written, len(plan.tiles), executor,
              time.perf_counter() - t_start)
@@ -937,7 +937,7 @@ def compare_outputs(tiled_summary: dict, tiled_output, reference_output, *, summ
     """Tiled vs reference (untiled) labels of the same points (merged outputs, same order):
     disagreements counted and located by their distance to the nearest core border, and the
     segment partitions compared. Added to the summary JSON as 'comparison' when summary_path is given."""
-    from roadx_ti import io, report
+    from roadx_ti import io, jsonio
 
     a, b = io.read(tiled_output), io.read(reference_output)
     if a.n != b.n:
@@ -975,5 +975,5 @@ def compare_outputs(tiled_summary: dict, tiled_output, reference_output, *, summ
     }
     if summary_path is not None:
         summary = dict(tiled_summary) | {"comparison": comparison}
-        report.write_json(summary_path, summary)
+        jsonio.write(summary_path, summary)
     return comparison
