@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 import time
 from pathlib import Path
@@ -99,6 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     from roadx_ti.config import ConfigError
     from roadx_ti.io import InputError
 
+    previous = _terminate_like_interrupt()
     try:
         return {"run": cmd_run, "eval": cmd_eval, "info": cmd_info, "synth": cmd_synth,
                 "accuracy": cmd_accuracy, "bench": cmd_bench}[args.command](args)
@@ -112,9 +114,75 @@ def main(argv: list[str] | None = None) -> int:
         # `roadx_ti info x | head`: the reader left; not an error of ours
         sys.stderr.close()
         return EXIT_OK
+    except Terminated as exc:
+        print(f"roadx_ti: stopped by {exc.name}; no partial output was left", file=sys.stderr)
+        return 128 + exc.number
     except KeyboardInterrupt:
-        print("roadx_ti: interrupted; no output was written", file=sys.stderr)
+        print("roadx_ti: interrupted; no partial output was left", file=sys.stderr)
         return 130
+    except MemoryError:
+        print("roadx_ti: out of memory; run in tiles (--tile-size) or on fewer points", file=sys.stderr)
+        return EXIT_DATA
+    except Exception as exc:   # a case nobody foresaw: one line (ROADX_TI_TRACEBACK=1 shows where)
+        if _RECEIVED:          # a signal raised inside a library callback, which wrapped it
+            number = _RECEIVED[0]
+            print(f"roadx_ti: stopped by {Terminated(number).name}; no partial output was left", file=sys.stderr)
+            return 128 + number
+        if os.environ.get("ROADX_TI_TRACEBACK"):
+            raise
+        text = " ".join(str(exc).split())[:300] or "(no message)"
+        print(f"roadx_ti: unexpected error: {type(exc).__name__}: {text} "
+              "(set ROADX_TI_TRACEBACK=1 for the traceback, and please report it)", file=sys.stderr)
+        return EXIT_DATA
+    finally:
+        _restore_signals(previous)
+
+
+_RECEIVED: list = []     # termination signals received during this main()
+
+
+class Terminated(BaseException):
+    """SIGTERM / SIGHUP received: unwinds like Ctrl-C, so temporary files are removed."""
+
+    def __init__(self, number: int):
+        import signal
+
+        super().__init__(number)
+        self.number = number
+        self.name = signal.Signals(number).name
+
+
+def _terminate_like_interrupt() -> dict:
+    """SIGTERM and SIGHUP raise Terminated, SIGINT KeyboardInterrupt, and each is remembered (a
+    library that calls back into Python may wrap the exception: main() still reports the signal);
+    main thread only; returns the previous handlers. A run stopped by a batch scheduler or a
+    closed terminal unwinds and removes its temporary files instead of dying with them."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+
+    def handler(number, frame):
+        _RECEIVED.append(number)
+        if number == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise Terminated(number)
+
+    previous = {}
+    _RECEIVED.clear()
+    for name in ("SIGTERM", "SIGHUP", "SIGINT"):
+        number = getattr(signal, name, None)
+        if number is not None:
+            previous[number] = signal.signal(number, handler)
+    return previous
+
+
+def _restore_signals(previous: dict) -> None:
+    import signal
+
+    for number, handler in previous.items():
+        signal.signal(number, handler)
 
 
 # --------------------------------------------------------------------------------------- run
