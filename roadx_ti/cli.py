@@ -310,7 +310,7 @@ def _run_tiled(cfg, out: Path, args) -> int:
         raise config.ConfigError("config error: input: tiled runs read files; give input.paths or --input")
     if cfg.output.mode == "merged":
         _make_parent(out)
-        io.check_output_path(out, [f.path for f in tiling.catalog(cfg.input.paths)])
+        io.check_output_path(out, [f.path for f in tiling.catalog(cfg.input.paths, warn=False)])
     else:
         out.mkdir(parents=True, exist_ok=True)
     try:

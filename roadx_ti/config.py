@@ -69,6 +69,8 @@ class ExecutorConfig(_Strict):
     workers: int | None = Field(None, ge=1, description="start a local Dask cluster of this many processes")
     scheduler: str | None = Field(None, pattern=r"^(tcp|tls|inproc|ucx)://", description="address of an "
                                   "existing Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    connect_timeout: float = Field(5.0, gt=0, description="seconds to reach the scheduler before the run stops")
+    worker_timeout: float = Field(30.0, gt=0, description="seconds to wait for the scheduler's first worker")
 
 
 class EvaluateConfig(_Strict):

@@ -25,6 +25,7 @@ How a run goes:
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import ctypes
 import logging
@@ -40,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from roadx_ti.cloud import Cloud
+from roadx_ti.errors import DataError
 from roadx_ti.stages.base import SURVEY_POINTS, SURVEY_Z_MIN
 
 log_default = logging.getLogger("roadx_ti")
@@ -57,6 +59,17 @@ class TileError(RuntimeError):
     """A tile failed (after its retries); the message names it by its bounds. Nothing was written."""
 
 
+class ClusterError(DataError):
+    """The Dask cluster cannot run the tiles (unreachable scheduler, no workers, workers with
+    another environment or without the inputs); one line, raised before any tile runs."""
+
+
+CONNECT_TIMEOUT = 5.0            # s: reaching the scheduler
+WORKER_TIMEOUT = 30.0            # s: waiting for the first worker
+# what must match between the client and every worker (README, Scale-out)
+ENVIRONMENT_PACKAGES = ("numpy", "laspy", "lazrs", "scipy", "dask", "distributed")
+
+
 # ------------------------------------------------------------------------------------- catalog
 
 @dataclass(frozen=True)
@@ -67,9 +80,39 @@ class CatalogFile:
     z_range: tuple = (math.inf, -math.inf)   # header (zmin, zmax)
 
 
-def catalog(inputs) -> list[CatalogFile]:
-    """The input files in order: each given file, or a folder's point-cloud files sorted by name.
-    Bounds and counts come from the headers (io.read_headers)."""
+LAS_SUFFIXES = (".las", ".laz")      # .copc.laz included
+
+
+def folder_files(folder: Path, warn: bool = True) -> list[Path]:
+    """The point-cloud files of a catalog folder, sorted by name: its LAS/LAZ/COPC files when it
+    holds any, else the files of the point-cloud format it holds most of (ties: io.EXTENSIONS
+    order). Other files (a readme.txt, a .prj, a format in the minority) are skipped with one
+    warning line; hidden files (a killed run's .partial file, .DS_Store) and sub-folders silently."""
+    from roadx_ti import io
+
+    entries = sorted(q for q in folder.iterdir() if not q.name.startswith(".") and q.is_file())
+    families = {}
+    for q in entries:
+        suffix = q.suffix.lower()
+        if suffix in io.EXTENSIONS:
+            families.setdefault("las" if suffix in LAS_SUFFIXES else suffix, []).append(q)
+    if not families:
+        raise io.InputError(f"{folder}: folder holds no point-cloud files ({' '.join(io.EXTENSIONS)})")
+    order = ["las"] + [s for s in io.EXTENSIONS if s not in LAS_SUFFIXES]
+    chosen = "las" if "las" in families else max(families, key=lambda f: (len(families[f]), -order.index(f)))
+    found = families[chosen]
+    skipped = [q.name for q in entries if q not in found]
+    if skipped and warn:
+        kind = "LAS/LAZ" if chosen == "las" else chosen
+        shown = ", ".join(skipped[:5]) + (f" and {len(skipped) - 5} more" if len(skipped) > 5 else "")
+        log_default.warning("%s: the catalog is its %d %s file(s); skipped %d other file(s): %s",
+                            folder, len(found), kind, len(skipped), shown)
+    return found
+
+
+def catalog(inputs, warn: bool = True) -> list[CatalogFile]:
+    """The input files in order: each given file, or a folder's point-cloud files sorted by name
+    (``folder_files``). Bounds and counts come from the headers (io.read_headers)."""
     from roadx_ti import io
 
     if isinstance(inputs, (str, os.PathLike)):
@@ -78,10 +121,7 @@ def catalog(inputs) -> list[CatalogFile]:
     for given in inputs:
         p = Path(given)
         if p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.is_file() and q.suffix.lower() in io.EXTENSIONS)
-            if not found:
-                raise io.InputError(f"{p}: folder holds no point-cloud files ({' '.join(io.EXTENSIONS)})")
-            paths.extend(str(q) for q in found)
+            paths.extend(str(q) for q in folder_files(p, warn))
         else:
             paths.append(str(p))
     if not paths:
@@ -490,7 +530,7 @@ def run_tile(job: TileJob) -> TileResult:
 def make_jobs(plan: TilePlan, files: list[CatalogFile], stage_specs, *, backend: str,
               threads: int | None, seed: int) -> list[TileJob]:
     survey_z_min = min((f.z_range[0] for f in files if f.count), default=math.inf)
-    return [TileJob(tile=t, paths={k: files[k].path for k in t.files}, grid=plan.grid,
+    return [TileJob(tile=t, paths={k: os.path.abspath(files[k].path) for k in t.files}, grid=plan.grid,
                     neighbour_cells={u: (plan.tiles[u].col, plan.tiles[u].row) for u in t.neighbours},
                     windows={u: plan.tiles[u].window for u in t.neighbours}, read_origin=plan.read_origin,
                     stage_specs=list(stage_specs), backend=backend, threads=threads, seed=seed,
@@ -537,6 +577,8 @@ def run_on_dask(client, jobs: list[TileJob], on_done, *, in_flight: int) -> None
 
     for _ in range(max(1, in_flight)):
         submit()
+    from concurrent.futures import CancelledError
+
     try:
         for fut in done:
             job = running.pop(fut)
@@ -547,34 +589,137 @@ def run_on_dask(client, jobs: list[TileJob], on_done, *, in_flight: int) -> None
             fut.release()
             on_done(result)
             submit()
+    except (OSError, TimeoutError, CancelledError) as exc:
+        raise ClusterError(f"lost the Dask cluster during the run ({type(exc).__name__}: "
+                           f"{' '.join(str(exc).split())[:200]}); no output was written") from None
     finally:
         if running:
-            client.cancel(list(running))
+            with contextlib.suppress(Exception):
+                client.cancel(list(running))
+
+
+def environment() -> dict:
+    """The versions a worker must share with the client: roadx_ti, Python (major.minor), the Taichi
+    distribution and version, and ENVIRONMENT_PACKAGES. Runs on every worker (Client.run)."""
+    import importlib.metadata as metadata
+
+    import roadx_ti
+    from roadx_ti.kernels import taichi_compat
+
+    env = {"roadx_ti": roadx_ti.__version__, "python": "%d.%d" % sys.version_info[:2],
+           taichi_compat.DISTRIBUTION: ".".join(map(str, taichi_compat.ti.__version__))}
+    for name in ENVIRONMENT_PACKAGES:
+        try:
+            env[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            env[name] = None
+    return env
+
+
+def unreadable(paths) -> list:
+    """[(path, problem)] of the input files this process cannot read (runs on every worker)."""
+    problems = []
+    for p in paths:
+        try:
+            with open(p, "rb") as f:
+                f.read(1)
+        except OSError as exc:
+            problems.append((p, exc.strerror or type(exc).__name__))
+    return problems
+
+
+def _reachable(address: str, timeout: float) -> None:
+    """A plain TCP connection to a tcp:// scheduler address, so that a closed port or an unknown
+    host fails at once instead of after the client's retries."""
+    from urllib.parse import urlsplit
+
+    if not address.startswith("tcp://"):
+        return
+    parts = urlsplit(address)
+    try:
+        port = parts.port
+    except ValueError:
+        raise ClusterError(f"--scheduler {address}: not a tcp://HOST:PORT address") from None
+    if not parts.hostname or port is None:
+        raise ClusterError(f"--scheduler {address}: not a tcp://HOST:PORT address")
+    try:
+        socket.create_connection((parts.hostname, port), timeout=timeout).close()
+    except OSError as exc:
+        why = exc.strerror or type(exc).__name__
+        raise ClusterError(f"cannot reach the Dask scheduler at {address} ({why}); start `dask scheduler` "
+                           "there, or run without --scheduler") from None
 
 
 class _DaskSession:
-    """A client on an existing scheduler, or on a LocalCluster of worker processes we own."""
+    """A client on an existing scheduler, or on a LocalCluster of worker processes we own.
+    Before any tile: the scheduler is reached within CONNECT_TIMEOUT, a worker joins within
+    WORKER_TIMEOUT, every worker runs the client's environment and can read every input."""
 
-    def __init__(self, workers: int | None, scheduler: str | None, log):
+    def __init__(self, workers: int | None, scheduler: str | None, log, inputs=(),
+                 connect_timeout: float = CONNECT_TIMEOUT, worker_timeout: float = WORKER_TIMEOUT):
         from distributed import Client, LocalCluster
 
         self.cluster = None
+        self.client = None
         if scheduler:
-            self.client = Client(scheduler, timeout="30s")
-            self.client.wait_for_workers(1, timeout=120)
+            _reachable(scheduler, connect_timeout)
+            try:
+                self.client = Client(scheduler, timeout=f"{connect_timeout}s")
+            except (OSError, TimeoutError) as exc:
+                raise ClusterError(f"cannot connect to the Dask scheduler at {scheduler} within "
+                                   f"{connect_timeout:g} s ({type(exc).__name__}: {' '.join(str(exc).split())[:200]})"
+                                   ) from None
+            try:
+                self.client.wait_for_workers(1, timeout=worker_timeout)
+            except (OSError, TimeoutError):
+                self.close()
+                raise ClusterError(f"the Dask scheduler at {scheduler} has no worker after {worker_timeout:g} s; "
+                                   f"start one with `dask worker {scheduler}`") from None
             self.kind = "scheduler"
         else:
             self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                         dashboard_address=None, silence_logs=logging.WARNING)
             self.client = Client(self.cluster)
             self.kind = "local-cluster"
+        try:
+            self._check_workers(inputs)
+        except BaseException:
+            self.close()
+            raise
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
         log.info("Dask %s at %s with %d worker(s)", self.kind, self.client.scheduler.address, self.workers)
 
+    def _check_workers(self, inputs):
+        mine = environment()
+        theirs = self.client.run(environment, on_error="return")
+        for worker, env in sorted(theirs.items()):
+            if isinstance(env, BaseException):
+                raise ClusterError(f"Dask worker {worker} cannot run roadx_ti ({type(env).__name__}: "
+                                   f"{' '.join(str(env).split())[:200]}); install the client's roadx_ti "
+                                   "environment on every worker")
+            differ = [f"{k} {env.get(k)} (here {v})" for k, v in mine.items() if env.get(k) != v]
+            if differ:
+                raise ClusterError(f"Dask worker {worker} runs {', '.join(differ)}; every worker needs the "
+                                   "client's environment (the same roadx_ti, Python and package versions)")
+        if inputs:
+            problems = self.client.run(unreadable, list(inputs), on_error="return")
+            for worker, found in sorted(problems.items()):
+                if isinstance(found, BaseException):
+                    raise ClusterError(f"Dask worker {worker} cannot check the inputs ({type(found).__name__}: "
+                                       f"{' '.join(str(found).split())[:200]})")
+                if found:
+                    path, why = found[0]
+                    more = f" (and {len(found) - 1} more input(s))" if len(found) > 1 else ""
+                    raise ClusterError(f"Dask worker {worker} cannot read {path} ({why}){more}; every input "
+                                       "must be readable under the same absolute path on every worker")
+
     def close(self):
-        self.client.close()
+        if self.client is not None:
+            with contextlib.suppress(Exception):
+                self.client.close()
         if self.cluster is not None:
-            self.cluster.close()
+            with contextlib.suppress(Exception):
+                self.cluster.close()
 
 
 class _Progress:
@@ -856,7 +1001,9 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
             jobs = make_jobs(plan, files, stage_specs, backend=cfg.backend, threads=cfg.threads, seed=cfg.seed)
             run_in_process(jobs, on_done)
         else:
-            session = _DaskSession(workers, scheduler, log)
+            session = _DaskSession(workers, scheduler, log, inputs=[os.path.abspath(f.path) for f in files],
+                                   connect_timeout=cfg.executor.connect_timeout,
+                                   worker_timeout=cfg.executor.worker_timeout)
             executor, n_workers = session.kind, session.workers
             # one Taichi runtime per worker process; CPU unless the config names a backend
             threads = cfg.threads or (max(1, (os.cpu_count() or 1) // int(workers)) if workers else None)
