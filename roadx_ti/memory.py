@@ -1,13 +1,17 @@
-"""Memory: what is free for a run, what a run will need, and how large a dense structure may be.
+"""Memory: what a run may use, what it will need, and how large a dense structure may be.
 
-``available_bytes``: the machine's available memory (psutil), lowered by a cgroup limit
-(containers, batch schedulers), an address-space rlimit (``ulimit -v``) and ROADX_TI_MEMORY_LIMIT
-(``--memory-limit`` / ``memory_limit`` in a config), whichever is smallest.
+``run_budget``: bytes a run may use in total: ROADX_TI_MEMORY_LIMIT when set (``--memory-limit``,
+``memory_limit`` in a config: the user's word, which also overrides what is detected), else what
+this process holds plus the machine's available memory (psutil), lowered by a cgroup limit
+(containers, batch schedulers) and an address-space rlimit (``ulimit -v``).
 
-``estimate``: peak memory of a pipeline run over n points, from bytes per point measured on the
-CPU backend (peak RSS of ``python -m roadx_ti run`` at 300 k and 1 M points, the difference divided
-by the points: see BYTES_PER_POINT) plus the process's base (Python, Taichi runtime, numpy,
-laspy: BASE_BYTES).
+``estimate``: peak RSS of ``python -m roadx_ti run`` over n points: BASE_BYTES plus
+BYTES_PER_POINT of the pipeline, measured on the CPU backend with /usr/bin/time on synthetic scenes
+(uav-road with configs/road_uav.yaml, als-roof with roof_als.yaml and ground.yaml; LAZ in and out,
+no PNG): the growth of the peak from 300 k to 1 M points per point (road 239, roof 226, ground 154
+B/pt; at 16 M, benchmarks/RESULTS.md: road 4.06 GB, roof 3.31 GB, ground 1.74 GB, i.e. 240, 195,
+98 B/pt above the base), rounded up. A run is refused (or tiled, with tiling.auto) when the
+estimate times SAFETY exceeds the budget.
 
 ``dense_limit``: how many cells a dense grid or lattice may have: a multiple of the points it is
 laid over (work and memory bounded by the points, not by their extent) and what fits in memory.
@@ -20,11 +24,8 @@ import re
 
 LIMIT_VARIABLE = "ROADX_TI_MEMORY_LIMIT"
 
-# peak RSS growth per input point (bytes), CPU backend, measured on synthetic scenes (uav-road for
-# the road pipeline, als-roof for roof and ground) at 300 k and 1 M points: (RSS(1 M) - RSS(300 k)) / 700 k
-BYTES_PER_POINT = {"road": 700, "roof": 950, "ground": 330}
-BASE_BYTES = 450 * 2**20          # Python + Taichi + numpy + laspy + scipy, before any points
-READ_BYTES_PER_POINT = 80         # the LAS record and float64 world coordinates while reading
+BYTES_PER_POINT = {"road": 250, "roof": 230, "ground": 160}
+BASE_BYTES = 200 * 2**20          # peak RSS of a run over a few points (Python, Taichi, numpy, laspy)
 SAFETY = 1.25                     # the estimate is raised by this factor before it is compared
 
 CELLS_PER_POINT = 64              # a dense structure may hold this many cells per point ...
@@ -79,36 +80,44 @@ def _rlimit_free():
         return None
 
 
-def available_bytes() -> int:
-    """Memory this run may still use (bytes): the smallest of the machine's available memory, the
-    cgroup's and the rlimit's headroom, and ROADX_TI_MEMORY_LIMIT minus what this process holds."""
+def _held() -> int:
     import psutil
 
-    candidates = [psutil.virtual_memory().available, _cgroup_free(), _rlimit_free()]
+    return int(psutil.Process().memory_info().rss)
+
+
+def run_budget() -> int:
+    """Bytes this run may use in total (module docstring)."""
+    import psutil
+
     limit = os.environ.get(LIMIT_VARIABLE)
     if limit:
-        held = psutil.Process().memory_info().rss
-        candidates.append(max(parse_size(limit) - held, 0))
-    return int(min(c for c in candidates if c is not None))
+        return parse_size(limit)
+    headroom = [psutil.virtual_memory().available, _cgroup_free(), _rlimit_free()]
+    return _held() + int(min(h for h in headroom if h is not None))
+
+
+def available_bytes() -> int:
+    """Bytes this process may still grow by: the run budget less what it holds."""
+    return max(run_budget() - _held(), 0)
 
 
 def estimate(pipeline: str, points: int) -> int:
     """Expected peak memory (bytes) of a run of ``pipeline`` over ``points`` points."""
-    per_point = BYTES_PER_POINT.get(pipeline, max(BYTES_PER_POINT.values())) + READ_BYTES_PER_POINT
-    return int(BASE_BYTES + per_point * points)
+    return int(BASE_BYTES + BYTES_PER_POINT.get(pipeline, max(BYTES_PER_POINT.values())) * points)
 
 
-def points_that_fit(pipeline: str, free: int) -> int:
-    """How many points a run of ``pipeline`` can take in ``free`` bytes (with the safety factor)."""
-    per_point = BYTES_PER_POINT.get(pipeline, max(BYTES_PER_POINT.values())) + READ_BYTES_PER_POINT
-    return max(int((free / SAFETY - BASE_BYTES) / per_point), 0)
+def points_that_fit(pipeline: str, budget: int) -> int:
+    """How many points a run of ``pipeline`` can take within ``budget`` bytes (with SAFETY)."""
+    per_point = BYTES_PER_POINT.get(pipeline, max(BYTES_PER_POINT.values()))
+    return max(int((budget / SAFETY - BASE_BYTES) / per_point), 0)
 
 
-def fits(pipeline: str, points: int, free: int | None = None) -> tuple[bool, int, int]:
-    """(fits, estimated bytes, free bytes) for a run of ``pipeline`` over ``points`` points."""
+def fits(pipeline: str, points: int, budget: int | None = None) -> tuple[bool, int, int]:
+    """(fits, estimated bytes, budget bytes) for a run of ``pipeline`` over ``points`` points."""
     need = estimate(pipeline, points)
-    free = available_bytes() if free is None else free
-    return need * SAFETY <= free, need, free
+    budget = run_budget() if budget is None else budget
+    return need * SAFETY <= budget, need, budget
 
 
 def dense_limit(points: int, bytes_per_cell: int) -> int:
