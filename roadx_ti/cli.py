@@ -10,6 +10,7 @@ import logging
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -90,6 +91,12 @@ def _setup_logging(quiet: bool) -> None:
     root.handlers[:] = [handler]
     root.setLevel(logging.WARNING if quiet else logging.INFO)
     root.propagate = False
+    # libraries' own log lines (laspy on odd headers) would add lines of their own to a one-line
+    # message; what matters in them reaches the user through our messages
+    for name in ("laspy", "lazrs"):
+        library = logging.getLogger(name)
+        library.handlers[:] = [logging.NullHandler()]
+        library.propagate = False
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -105,8 +112,13 @@ def main(argv: list[str] | None = None) -> int:
 
     previous = _terminate_like_interrupt()
     try:
-        return {"run": cmd_run, "eval": cmd_eval, "info": cmd_info, "synth": cmd_synth,
-                "accuracy": cmd_accuracy, "bench": cmd_bench}[args.command](args)
+        with warnings.catch_warnings():
+            # numpy's RuntimeWarning / UserWarning on absurd values (a header offset of 1e308, an
+            # empty text table) would print lines of their own: the data checks report them
+            warnings.simplefilter("ignore", RuntimeWarning)
+            warnings.simplefilter("ignore", UserWarning)
+            return {"run": cmd_run, "eval": cmd_eval, "info": cmd_info, "synth": cmd_synth,
+                    "accuracy": cmd_accuracy, "bench": cmd_bench}[args.command](args)
     except (ConfigError, UsageError, BackendError) as exc:   # BackendError: --backend not on this machine
         print(f"roadx_ti: {exc}", file=sys.stderr)
         return EXIT_USAGE

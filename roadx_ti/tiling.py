@@ -897,6 +897,7 @@ def _write_las_stream(out: Path, file_ids, merge: _Merge, processed_only: bool) 
         finally:
             if writer is not None:
                 writer.close()
+        io_las.check_written(out, tmp)
     return written
 
 

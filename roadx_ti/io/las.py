@@ -37,8 +37,75 @@ NEW_FILE_SCALE = 0.001      # metres: scale of LAS files written from non-LAS cl
 # LAS 1.0-1.3 formats keep the class in 5 bits (0-31); the 1.4 format with the same fields holds 0-255
 WIDE_CLASS_FORMAT = {0: 6, 1: 6, 2: 7, 3: 7, 4: 9, 5: 10}
 EXTRA_DIM_TYPES = {np.dtype(t) for t in ("u1", "i1", "u2", "i2", "u4", "i4", "u8", "i8", "f4", "f8")}
-LAS_ERRORS = (laspy.errors.LaspyException, LazrsError, ValueError, OSError, EOFError, IndexError,
-              KeyError, TypeError)
+# what laspy and lazrs raise on a malformed file: every exception but ours (a corrupt header or
+# chunk reaches struct, numpy and Rust code paths laspy does not wrap)
+LAS_ERRORS = (Exception,)
+
+# sizes of the LAS point formats 0-10 without extra bytes, and of the header per minor version
+POINT_SIZES = {0: 20, 1: 28, 2: 26, 3: 34, 4: 57, 5: 63, 6: 30, 7: 36, 8: 38, 9: 59, 10: 67}
+HEADER_SIZES = {0: 227, 1: 227, 2: 227, 3: 235, 4: 375}
+VLR_HEADER, EVLR_HEADER = 54, 60
+
+
+def check_structure(path) -> None:
+    """Check a LAS/LAZ file's header against the file itself before laspy reads it, so that a
+    lying field fails in one line instead of an allocation or a loop sized by it (a VLR count of
+    2^31 made laspy read VLRs until memory ran out): signature, version, header size, offset to
+    the points, every VLR within the space before the points, point format and record length,
+    the points of an uncompressed file within the file, the EVLRs within the file."""
+    import os
+    import struct
+
+    size = os.path.getsize(path)
+    with open(path, "rb") as f:
+        head = f.read(375)
+        if len(head) < 227:
+            if head[:4] != b"LASF":
+                raise fail(path, "not a LAS/LAZ file (no LASF signature)")
+            raise fail(path, f"truncated LAS/LAZ file: {len(head)} bytes, a LAS header needs 227")
+        if head[:4] != b"LASF":
+            raise fail(path, "not a LAS/LAZ file (no LASF signature)")
+        major, minor = head[24], head[25]
+        if major != 1 or minor not in HEADER_SIZES:
+            raise fail(path, f"LAS version {major}.{minor} is not supported (1.0 to 1.4)")
+        header_size, offset, vlrs = struct.unpack_from("<HII", head, 94)
+        fmt_byte, record = struct.unpack_from("<BH", head, 104)
+        count = struct.unpack_from("<I", head, 107)[0]
+        need = HEADER_SIZES[minor]
+        if len(head) < need:
+            raise fail(path, f"truncated LAS/LAZ file: {len(head)} bytes, a LAS {major}.{minor} header needs {need}")
+        if minor >= 4:
+            evlr_start, evlr_count, count = struct.unpack_from("<QIQ", head, 235)
+        if not need <= header_size <= offset <= size:
+            raise fail(path, f"invalid header: header size {header_size}, offset to the points {offset}, "
+                             f"file size {size} (LAS {major}.{minor} needs {need} <= header size <= offset <= file size)")
+        if vlrs * VLR_HEADER > offset - header_size:
+            raise fail(path, f"invalid header: {vlrs} VLRs cannot fit in the {offset - header_size} bytes "
+                             "before the points")
+        f.seek(header_size)
+        block = f.read(offset - header_size)
+        pos = 0
+        for i in range(vlrs):
+            length = struct.unpack_from("<H", block, pos + 20)[0]
+            pos += VLR_HEADER + length
+            if pos > len(block):
+                raise fail(path, f"invalid VLR {i + 1} of {vlrs}: its {length} bytes run past the start of "
+                                 "the points")
+    point_format = fmt_byte & 0x3F
+    compressed = bool(fmt_byte & 0xC0)
+    if point_format not in POINT_SIZES:
+        raise fail(path, f"invalid header: point format {point_format} is not a LAS point format (0 to 10)")
+    if record < POINT_SIZES[point_format]:
+        raise fail(path, f"invalid header: point records of {record} bytes, point format {point_format} "
+                         f"needs {POINT_SIZES[point_format]}")
+    if count > MAX_POINTS:
+        raise _too_many(path, count)
+    if not compressed and offset + count * record > size:
+        have = (size - offset) // record
+        raise fail(path, f"truncated LAS/LAZ file: the header says {count} points, the file holds {have}")
+    if minor >= 4 and evlr_count and not (offset <= evlr_start and evlr_start + evlr_count * EVLR_HEADER <= size):
+        raise fail(path, f"invalid header: {evlr_count} EVLRs from byte {evlr_start} do not fit in the file "
+                         f"of {size} bytes")
 
 
 def _las_error(path, exc: Exception) -> InputError:
@@ -129,10 +196,32 @@ def _read_window(path, reader, bounds) -> laspy.ScaleAwarePointRecord:
     return laspy.ScaleAwarePointRecord(array, header.point_format, header.scales, header.offsets)
 
 
+def _read_all(path, reader) -> laspy.LasData:
+    """Every point of an open file. LAZ is decompressed chunk by chunk, so memory follows the
+    points the file really holds, not the count its header claims."""
+    header = reader.header
+    if not header.are_points_compressed:
+        las = reader.read()
+        got = len(las.points)
+    else:
+        chunks, got = [], 0
+        for chunk in reader.chunk_iterator(CHUNK_POINTS):
+            chunks.append(chunk.array)
+            got += len(chunk)
+        array = np.concatenate(chunks) if chunks else np.zeros(0, dtype=header.point_format.dtype())
+        las = laspy.LasData(copy.deepcopy(header), laspy.ScaleAwarePointRecord(
+            array, header.point_format, header.scales, header.offsets))
+        las.header.point_count = got
+    if got != header.point_count:
+        raise fail(path, f"truncated LAS/LAZ file: {got} of {header.point_count} points could be read")
+    return las
+
+
 def read_las(path, bounds=None, origin=None) -> Cloud:
     """Read a LAS/LAZ file (optionally only the points inside ``bounds`` = (xmin, ymin, xmax, ymax),
     half-open) into a Cloud that keeps the LasData in ``cloud.las``."""
     try:
+        check_structure(path)
         with laspy.open(path) as reader:
             header = reader.header
             _check_header(path, header)
@@ -140,10 +229,7 @@ def read_las(path, bounds=None, origin=None) -> Cloud:
             if bounds is None:
                 if header.point_count > MAX_POINTS:
                     raise _too_many(path, header.point_count)
-                las = reader.read()
-                if len(las.points) != header.point_count:
-                    raise fail(path, f"truncated LAS/LAZ file: {len(las.points)} of "
-                                     f"{header.point_count} points could be read")
+                las = _read_all(path, reader)
             else:
                 points = _read_window(path, reader, bounds)
                 las = laspy.LasData(copy.deepcopy(header), points)
@@ -275,6 +361,17 @@ def _las_from_record(path, src, n: int, classification, extra_dims, index) -> la
             array.copy(), header.point_format, header.scales, header.offsets)),
             point_format_id=wide, file_version="1.4")
         header, array = upgraded.header, upgraded.points.array
+    version = f"{header.version.major}.{header.version.minor}"
+    fmt_id = header.point_format.id
+    if fmt_id not in laspy.point.dims.VERSION_TO_POINT_FMT.get(version, ()):
+        # laspy reads LAS 1.0 and odd version / format pairs but writes neither
+        target = laspy.point.dims.preferred_file_version_for_point_format(fmt_id)
+        log.warning("%s: LAS %s with point format %d cannot be written; writing LAS %s (the point records "
+                    "are the same)", path, version, fmt_id, target)
+        upgraded = laspy.convert(laspy.LasData(header, laspy.ScaleAwarePointRecord(
+            array.copy(), header.point_format, header.scales, header.offsets)),
+            point_format_id=fmt_id, file_version=target)
+        header, array = upgraded.header, upgraded.points.array
     extra = {name: _extra_dim_values(path, name, per_point(name, v, n, index))
              for name, v in (extra_dims or {}).items()}
     if extra:
@@ -345,6 +442,22 @@ def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subse
     with atomic_output(path) as tmp:
         with open(tmp, "wb") as f:
             las.write(f, do_compress=compress)
+        check_written(path, tmp, cloud.source)
+
+
+def check_written(path, tmp, source="") -> None:
+    """The written temporary file parses as LAS/LAZ (header, VLRs, point format), or the write
+    fails in one line and the output is not replaced: laspy writes some headers it cannot read
+    back (an undeclared extra-bytes field of more than 3 elements, from an input whose extra-bytes
+    VLR does not describe its records)."""
+    try:
+        with laspy.open(tmp) as reader:
+            reader.header.point_format.dtype()
+    except Exception as exc:
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        raise fail(path, f"the point records{f' of {source}' if source else ''} cannot be written back as a "
+                         f"readable LAS/LAZ file ({text}); check its header (point format, record length, "
+                         "extra-bytes VLR), e.g. with pdal info --metadata") from None
 
 
 # ------------------------------------------------------------------------------- header look-ups
@@ -352,6 +465,7 @@ def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subse
 def read_header_las(path):
     """(point count, (xmin, ymin, xmax, ymax), (zmin, zmax)) from the header alone."""
     try:
+        check_structure(path)
         with laspy.open(path) as reader:
             h = reader.header
             return (int(h.point_count), (float(h.mins[0]), float(h.mins[1]), float(h.maxs[0]), float(h.maxs[1])),
@@ -363,6 +477,7 @@ def read_header_las(path):
 def iter_xy_las(path):
     """World x, y (float64) chunk by chunk; a truncated file is an InputError."""
     try:
+        check_structure(path)
         with laspy.open(path) as reader:
             _check_header(path, reader.header)
             seen = 0
@@ -403,6 +518,7 @@ def crs_text(header) -> str | None:
 def info_las(path) -> dict:
     """Header facts plus the class histogram, colour and exact bounds from a chunked pass."""
     try:
+        check_structure(path)
         with laspy.open(path) as reader:
             h = reader.header
             fmt = h.point_format
