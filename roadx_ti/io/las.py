@@ -127,6 +127,21 @@ def _check_header(path, header) -> None:
                          f"{list(header.offsets)}, so all {header.point_count} coordinates are NaN/inf")
 
 
+def _check_magnitude(path, world: np.ndarray, scales) -> None:
+    """Coordinates so large that float64 cannot hold them at the file's scale (an offset near
+    1e308: every point collapses onto one value) are a broken header, not a survey."""
+    if not len(world):
+        return
+    with np.errstate(invalid="ignore"):
+        reach = np.nanmax(np.abs(world), axis=0)
+    limit = np.maximum(np.abs(np.asarray(scales, np.float64)), 1e-3) * 2.0**52
+    bad = np.flatnonzero(np.isfinite(reach) & (reach > limit))
+    if len(bad):
+        a = int(bad[0])
+        raise fail(path, f"{'xyz'[a]} coordinates reach {reach[a]:.3g} m, beyond what float64 holds at the "
+                         f"file's {float(scales[a]):g} m scale; the header's scales or offsets are wrong")
+
+
 def _world_xyz(points) -> np.ndarray:
     """float64 world coordinates of a laspy point record (scaled integers)."""
     return np.column_stack([np.asarray(points.x, dtype=np.float64), np.asarray(points.y, dtype=np.float64),
@@ -238,6 +253,7 @@ def read_las(path, bounds=None, origin=None) -> Cloud:
     except LAS_ERRORS as exc:
         raise _las_error(path, exc) from exc
     world = _world_xyz(las.points)
+    _check_magnitude(path, world, las.header.scales)
     if origin is None:
         origin = _local_origin(hmins, hmaxs, las.header.scales, world, whole=bounds is None)
     origin = np.asarray(origin, dtype=np.float64).reshape(3)
