@@ -301,6 +301,9 @@ def cmd_run(args) -> int:
             log.warning("output.dtm: no cloth stage ran, so there is no DTM to write")
         else:
             from roadx_ti import dtm
+            if ctx.facts.get("cloth_parts", 1) > 1:
+                log.warning("output.dtm: the cloud is %d parts more than 100 m apart; the DTM covers the "
+                            "largest (a raster over all would be sized by the gaps)", ctx.facts["cloth_parts"])
             dtm.write(cfg.output.dtm, *ctx.facts["cloth"])
             summary["dtm"] = cfg.output.dtm
     from roadx_ti import report
