@@ -252,6 +252,11 @@ def cmd_run(args) -> int:
     log.info("read %d points from %s in %.2f s", cloud.n, cloud.source, read_s)
     if cloud.n == 0:
         raise DataError(f"{cloud.source}: the input holds no points")
+    if cloud.las is None and out.suffix.lower() in (".las", ".laz"):
+        from roadx_ti.io.las import fits_new_file
+        if not fits_new_file(cloud.xyz):     # say it now, not after the whole pipeline
+            raise DataError(f"{out}: the points of {cloud.source} span more than +-2147 km from their origin, "
+                            "which a LAS file at 1 mm scale cannot hold; split the cloud or write .ply/.npz")
     if _points_before_reading(cfg) is None:        # formats without a header count: now it is known
         _check_memory(cfg, cloud.n, cloud)
         if cfg.tiled:

@@ -346,12 +346,28 @@ def plan_tiles(files: list[CatalogFile], tile_size: float, buffer: float, scan=N
                  and f.bounds[0] < window[2] and f.bounds[3] >= window[1] and f.bounds[1] < window[3]]
         lo_c, lo_r = grid.cells([window[0]], [window[1]])
         hi_c, hi_r = grid.cells([np.nextafter(window[2], -np.inf)], [np.nextafter(window[3], -np.inf)])
-        cc, rr = np.meshgrid(np.arange(max(int(lo_c[0]), 0), min(int(hi_c[0]), grid.cols - 1) + 1),
-                             np.arange(max(int(lo_r[0]), 0), min(int(hi_r[0]), grid.rows - 1) + 1))
-        found = tile_lookup(grid, keys, ids, cc.ravel(), rr.ravel())
-        near = tuple(int(t) for t in found if t >= 0 and t != i)
+        found = _tiles_in(grid, keys, ids, (max(int(lo_c[0]), 0), min(int(hi_c[0]), grid.cols - 1)),
+                          (max(int(lo_r[0]), 0), min(int(hi_r[0]), grid.rows - 1)))
+        near = tuple(int(t) for t in found if t != i)
         tiles.append(Tile(i, c, r, core, window, tuple(meets), near))
     return TilePlan(grid, float(tile_size), float(buffer), read_origin, tiles, keys, ids)
+
+
+def _tiles_in(grid: CoreGrid, keys: np.ndarray, ids: np.ndarray, cols: tuple, rows: tuple) -> np.ndarray:
+    """Ascending tile indices whose cells lie in the column and row ranges (inclusive): by looking
+    up the range's cells when they are few, else by filtering the tiles (a buffer far larger than
+    the tiles must not enumerate the cells it spans)."""
+    if cols[0] > cols[1] or rows[0] > rows[1]:
+        return np.zeros(0, np.int64)
+    if (cols[1] - cols[0] + 1) * (rows[1] - rows[0] + 1) <= len(keys):
+        cc, rr = np.meshgrid(np.arange(cols[0], cols[1] + 1), np.arange(rows[0], rows[1] + 1))
+        found = tile_lookup(grid, keys, ids, cc.ravel(), rr.ravel())
+        return np.sort(found[found >= 0])
+    r, c = np.divmod(keys, grid.cols)
+    return np.sort(ids[(c >= cols[0]) & (c <= cols[1]) & (r >= rows[0]) & (r <= rows[1])])
+
+
+MIN_POINTS_PER_TILE = 1000      # a tile size giving (many) fewer points per tile is refused
 
 
 def _box_cells(grid: CoreGrid, f: CatalogFile) -> int:
@@ -965,6 +981,10 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     buffer = auto_buffer if buffer is None else float(buffer)
     tile_size = default_tile_size(files) if tile_size is None else float(tile_size)
     plan = plan_tiles(files, tile_size, buffer, scan=scan_cells)
+    if len(plan.tiles) > max(64, total_points // MIN_POINTS_PER_TILE):
+        raise ValueError(f"--tile-size {tile_size:g} gives {len(plan.tiles):,} tiles for {total_points:,} points, "
+                         f"fewer than {MIN_POINTS_PER_TILE} per tile (each tile reads its files): use a larger "
+                         f"tile size, e.g. {default_tile_size(files):g} m")
 
     inputs = [f.path for f in files]
     if output_mode == "merged":

@@ -399,6 +399,11 @@ def _las_from_record(path, src, n: int, classification, extra_dims, index) -> la
     return laspy.LasData(header, record)
 
 
+def fits_new_file(local: np.ndarray) -> bool:
+    """Whether local coordinates (m from the origin) fit a new LAS file's int32 at NEW_FILE_SCALE."""
+    return not local.size or float(np.abs(local).max()) / NEW_FILE_SCALE <= 2**31 - 1.5
+
+
 def _las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> laspy.LasData:
     n = cloud.n
     has_rgb = cloud.rgb is not None
@@ -422,7 +427,7 @@ def _las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> l
             extra[name] = _extra_dim_values(path, name, a)
     local = cloud.xyz.astype(np.float64) if index is None else cloud.xyz[index].astype(np.float64)
     ints = np.round(local / NEW_FILE_SCALE)
-    if ints.size and (np.abs(ints).max() > 2**31 - 1):
+    if not fits_new_file(local):
         raise fail(path, "coordinates span more than +-2147 km from the origin at 1 mm scale; "
                          "split the cloud or move its origin")
     record = _set_extra_dims(path, header, np.zeros(len(local), dtype=header.point_format.dtype()), extra)
