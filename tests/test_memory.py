@@ -54,13 +54,13 @@ print(json.dumps({"code": proc.returncode, "stderr": proc.stderr[-2000:],
 @pytest.mark.parametrize("pipeline,kind,config", [("roof", "als-roof", "roof_als.yaml")])
 def test_estimate_covers_a_measured_run(tmp_path, pipeline, kind, config):
     from cli_helpers import CONFIGS, synth
-    src = synth(tmp_path / "scene.laz", "150k", kind=kind)
+    src = synth(tmp_path / "scene.laz", "100k", kind=kind)
     proc = subprocess.run([sys.executable, "-c", MEASURE, "run", CONFIGS / config, "--backend", "cpu", "--quiet",
                            "--input", src, "--output", tmp_path / "out.laz", "--set", "output.report_png=false"],
                           capture_output=True, text=True, timeout=600)
     measured = json.loads(proc.stdout)
     assert measured["code"] == 0, measured["stderr"]
-    estimate = memory.estimate(pipeline, 150_000)
+    estimate = memory.estimate(pipeline, 100_000)
     # an upper bound, but not a wild one (a base of 200 MB dominates at this size)
     assert measured["peak"] <= estimate * memory.SAFETY, (measured["peak"], estimate)
     assert estimate < 3 * measured["peak"]
