@@ -700,6 +700,18 @@ def f32_from_key(key) -> float:
     return float(np.array([bits], np.int32).view(np.float32)[0])
 
 
+class LatticeTooLarge(ValueError):
+    """The cloth over the points' extent would hold more particles than allowed (``csf``'s
+    ``max_particles``); raised before anything is allocated."""
+
+    def __init__(self, cols: int, rows: int, resolution: float, limit: int):
+        self.cols, self.rows, self.resolution, self.limit = cols, rows, resolution, limit
+        self.particles = cols * rows
+        super().__init__(f"a cloth of {cols} x {rows} particles ({cols * resolution:.0f} x "
+                         f"{rows * resolution:.0f} m at {resolution:g} m) is more than the "
+                         f"{limit} particles allowed")
+
+
 def _fill_i32(shape, value):
     a = ndarray(np.int32, shape)
     a.fill(value)
@@ -708,7 +720,8 @@ def _fill_i32(shape, value):
 
 def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: float = 0.65,
         iterations: int = 500, class_threshold: float = 0.5,
-        slope_smooth: bool = False, lattice_origin=None, start_z: float = None) -> ClothResult:
+        slope_smooth: bool = False, lattice_origin=None, start_z: float = None,
+        max_particles: int = None) -> ClothResult:
     """Cloth simulation filter of the (n, 3) float32 local points ``xyz`` (numpy or ndarray).
 
     Parameters mirror the `cloth-simulation-filter` package (``interations`` -> ``iterations``,
@@ -720,6 +733,8 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
     ``start_z`` (local z): the cloth starts above min(start_z, lowest point) instead of the lowest
     point (tiles of one survey pass the survey's lowest z: a cloth falling from another height
     collides at other speeds and settles differently).
+    ``max_particles``: raise LatticeTooLarge, before any allocation, when the cloth over the
+    points' bounding box would hold more particles (None: only the 32-bit limit).
     """
     if not cloth_resolution > 0:
         raise ValueError("cloth_resolution must be > 0")
@@ -740,8 +755,10 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
     _bbox(points, keys, BBOX_CHUNK)
     lo, hi, cols, rows, x0, y0, lattice_row = _grid(keys.to_numpy(), res, lattice_origin)
     cells = cols * rows
+    if max_particles is not None and cells > max_particles:
+        raise LatticeTooLarge(cols, rows, res, int(max_particles))
     if cells >= 2**31 - 1:
-        raise ValueError("cloth grid too large for 32-bit indexing; use a coarser resolution")
+        raise LatticeTooLarge(cols, rows, res, 2**31 - 2)
 
     # collision heights (inverted frame)
     cell_key = _fill_i32((cells,), _KEY_MAX)

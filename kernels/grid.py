@@ -24,6 +24,10 @@ from .scan import exclusive_scan_into
 _P1, _P2, _P3 = 73856093, 19349663, 83492791
 _MAX_CELL_COORD = 2**30
 _BOUNDS_CHUNK = 16384
+# an automatic cell size is refined when its cells hold on average more than this many times the
+# points per cell asked for: the bounding box is then mostly empty (far stray points), and its
+# density says nothing about the points' spacing
+OVERFULL = 16.0
 
 
 @dataclass
@@ -216,6 +220,39 @@ def auto_cell_size(extent, n: int, points_per_cell: float) -> float:
     return max(size, float(e[0]) / 2**28, 1e-6)
 
 
+def _occupied_cells(xyz: np.ndarray, lo: np.ndarray, cell_size: float) -> int:
+    """Number of occupied cells of edge ``cell_size`` (host; hashed cell keys, collisions in 64
+    bits are negligible for a size choice)."""
+    c = np.floor((xyz.astype(np.float64) - lo) / cell_size).astype(np.int64)
+    key = (c[:, 0] * np.int64(_P1)) ^ (c[:, 1] * np.int64(_P2)) ^ (c[:, 2] * np.int64(_P3))
+    return int(len(np.unique(key)))
+
+
+def refined_cell_size(xyz, lo, extent, cell_size: float, cells: int, points_per_cell: float) -> float:
+    """A cell size for points whose automatic cells (``cell_size``, ``cells`` occupied) are
+    overfull: shrunk until the occupied cells hold about ``points_per_cell`` points each (the
+    density of the occupied space, not of the bounding box), or until shrinking stops splitting
+    the points (duplicates). Returns ``cell_size`` when it is not overfull."""
+    n = length(xyz)
+    if n <= OVERFULL * points_per_cell * cells:
+        return cell_size
+    host = xyz.to_numpy() if is_ndarray(xyz) else np.asarray(xyz)
+    lo = np.asarray(lo, np.float64)
+    smallest = max(float(np.max(extent)) / 2**28, 1e-6)
+    size = cell_size
+    for _ in range(12):
+        candidate = max(size * math.sqrt(max(points_per_cell * cells / n, 1e-4)), smallest)
+        if candidate >= size:
+            break
+        found = _occupied_cells(host, lo, candidate)
+        if found < 1.5 * cells:           # no longer splits the points: duplicates, not space
+            break
+        size, cells = candidate, found
+        if n <= OVERFULL * points_per_cell * cells:
+            break
+    return size
+
+
 def _check_xyz(xyz):
     if len(xyz.shape) != 2 or int(xyz.shape[1]) != 3:
         raise ValueError(f"xyz must have shape (n, 3), got {tuple(xyz.shape)}")
@@ -259,7 +296,8 @@ def build_grid_into(xyz, cell_size, points_per_cell: float, *, private: bool) ->
     extent = (hi - lo).astype(np.float32)
     if not np.all(np.isfinite(extent)):
         raise ValueError("xyz holds non-finite coordinates")
-    if cell_size is None:
+    automatic = cell_size is None
+    if automatic:
         cell_size = auto_cell_size(extent, n, points_per_cell)
     cell_size = float(cell_size)
     if not cell_size > 0:
@@ -287,9 +325,16 @@ def build_grid_into(xyz, cell_size, points_per_cell: float, *, private: bool) ->
         _scatter(pts, count, *geometry, order, sorted_xyz)
         _sorted_cells(sorted_xyz, sorted_cell, ox, oy, oz, float(inv_cell))
         _sort_buckets(start, order, sorted_xyz, sorted_cell, table)
-    return Grid(n=n, cell_size=cell_size, inv_cell=float(inv_cell), origin=(ox, oy, oz),
+    grid = Grid(n=n, cell_size=cell_size, inv_cell=float(inv_cell), origin=(ox, oy, oz),
                 table_mask=mask, order=order, bucket_start=start, sorted_xyz=sorted_xyz,
                 sorted_cell=sorted_cell, extent=tuple(float(v) for v in extent))
+    if automatic and n:
+        # a bounding box inflated by far stray points: its density gives cells holding most of the
+        # points, and every query would scan them all; size the cells from the occupied space
+        refined = refined_cell_size(pts, lo, extent, cell_size, grid.n_cells, points_per_cell)
+        if refined != cell_size:
+            return build_grid_into(xyz, refined, points_per_cell, private=private)
+    return grid
 
 
 def _cell_runs(sorted_cell, n: int):

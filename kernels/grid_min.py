@@ -4,12 +4,21 @@ METHODS.md R4: col = floor((x - x_min) / step), row = floor((y - y_min) / step),
 cell = row * n_cols + col, n_cols = floor((x_max - x_min) / step) + 1. The lowest point g of every
 cell is found with integer atomics on an order-preserving encoding of z (ties: lowest index), so
 the result does not depend on thread timing and needs no float atomics.
+
+Cells are dense ids over the bounding box when that grid holds at most DENSE_CELLS_PER_POINT
+cells per point (plus DENSE_MIN_CELLS); otherwise (far stray points, a few areas far apart) the
+occupied cells get compact ids from their sorted (col, row) keys (``sparse_cell_minimum``), so
+memory follows the points, not the extent. Both give every point the same lowest point of its
+cell, so ``slope_filter`` returns the same result either way.
 """
 import numpy as np
 from .taichi_compat import ti
 
-from .common import INT32_MAX, f32_order_key, kernel_array, like_input, ndarray, output_array
+from .common import INT32_MAX, f32_order_key, is_ndarray, kernel_array, like_input, ndarray, output_array
 
+DENSE_CELLS_PER_POINT = 4
+DENSE_MIN_CELLS = 1 << 20
+_MAX_COORD = 2**30              # sparse cell columns and rows are clipped to +-2^30
 
 @ti.kernel
 def _cell_of_point(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.types.ndarray(dtype=ti.i32, ndim=1),
@@ -62,8 +71,10 @@ def _slope_test(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.types.ndar
         keep[i] = ti.u8(1) if (slope < slope_max and dh < dh_max) else ti.u8(0)
 
 
-def _grid_shape(xyz_np_min_max, step):
+def _grid_shape(xyz_np_min_max, step, origin=None):
     (x_min, y_min), (x_max, y_max) = xyz_np_min_max
+    if origin is not None:
+        x_min, y_min = (np.float32(v) for v in origin)
     n_cols = int(np.floor((x_max - x_min) / step)) + 1
     n_rows = int(np.floor((y_max - y_min) / step)) + 1
     return x_min, y_min, n_cols, n_rows
@@ -75,8 +86,30 @@ def _xy_bounds(xyz):
     return (arr[:, 0].min(), arr[:, 1].min()), (arr[:, 0].max(), arr[:, 1].max())
 
 
-def cell_minimum(xyz, step: float):
-    """Lowest point of every occupied 2D cell of edge ``step``.
+def dense_fits(xyz, step: float, origin=None) -> bool:
+    """Whether the dense grid over the points' bounding box (from ``origin``, which no point may
+    lie below) stays within DENSE_CELLS_PER_POINT cells per point (plus DENSE_MIN_CELLS)."""
+    n = int(xyz.shape[0])
+    bounds = _xy_bounds(xyz)
+    if origin is not None and (bounds[0][0] < np.float32(origin[0]) or bounds[0][1] < np.float32(origin[1])):
+        return False
+    _, _, n_cols, n_rows = _grid_shape(bounds, step, origin)
+    return n_cols * n_rows <= DENSE_CELLS_PER_POINT * n + DENSE_MIN_CELLS
+
+
+def _lowest_per_cell(pts, cell, n_cells, reference):
+    cell_min_z_key = ndarray(ti.i32, (n_cells,))
+    cell_lowest = output_array(ti.i32, (n_cells,), reference)
+    _fill_i32(cell_min_z_key, INT32_MAX)
+    _fill_i32(cell_lowest, INT32_MAX)
+    _cell_min_z_key(pts, cell, cell_min_z_key)
+    _cell_lowest_point(pts, cell, cell_min_z_key, cell_lowest)
+    return _empty_as_minus_one(like_input(cell_lowest, reference))
+
+
+def cell_minimum(xyz, step: float, origin=None):
+    """Lowest point of every 2D cell of edge ``step`` of the dense grid over the bounding box
+    (from ``origin`` = (x_min, y_min) when given: the grid's corner, no point below it).
 
     Returns ``(cell_of_point, cell_lowest, n_cols)``: the cell id of every point (int32) and, per
     cell id, the index of its lowest point (ties to the lowest index; -1 for empty cells).
@@ -85,19 +118,46 @@ def cell_minimum(xyz, step: float):
         raise ValueError(f"grid step must be > 0, got {step}")
     pts = kernel_array(xyz, "float32")
     n = int(pts.shape[0])
-    x_min, y_min, n_cols, n_rows = _grid_shape(_xy_bounds(pts), step)
+    bounds = _xy_bounds(pts)
+    x_min, y_min, n_cols, n_rows = _grid_shape(bounds, step, origin)
+    if bounds[0][0] < x_min or bounds[0][1] < y_min:
+        raise ValueError(f"points lie below the grid origin {origin}; use sparse_cell_minimum")
     n_cells = n_cols * n_rows
     if n_cells >= INT32_MAX:
         raise ValueError(f"a {n_cols} x {n_rows} grid at step {step} m exceeds 32-bit indexing; tile the input")
     cell = output_array(ti.i32, (n,), xyz)
     _cell_of_point(pts, cell, float(x_min), float(y_min), float(step), n_cols)
-    cell_min_z_key = ndarray(ti.i32, (n_cells,))
-    cell_lowest = output_array(ti.i32, (n_cells,), xyz)
-    _fill_i32(cell_min_z_key, INT32_MAX)
-    _fill_i32(cell_lowest, INT32_MAX)
-    _cell_min_z_key(pts, cell, cell_min_z_key)
-    _cell_lowest_point(pts, cell, cell_min_z_key, cell_lowest)
-    return like_input(cell, xyz), _empty_as_minus_one(like_input(cell_lowest, xyz)), n_cols
+    return like_input(cell, xyz), _lowest_per_cell(pts, cell, n_cells, xyz), n_cols
+
+
+def sparse_cell_minimum(xyz, step: float, origin=None):
+    """Lowest point of every occupied 2D cell of edge ``step``, cells numbered compactly in
+    (col, row) order; col and row as in ``cell_minimum`` (the same float32 arithmetic; from
+    ``origin`` when given, points below it in negative columns and rows).
+
+    Returns ``(cell_of_point, cell_lowest, col_row)``: compact cell id of every point (int32), the
+    index of each cell's lowest point (ties to the lowest index), and each cell's (col, row)
+    (int64 (cells, 2)). Memory is O(points) whatever the extent.
+    """
+    if step <= 0:
+        raise ValueError(f"grid step must be > 0, got {step}")
+    pts = kernel_array(xyz, "float32")
+    host = pts.to_numpy() if is_ndarray(pts) else np.asarray(pts)
+    x_min, y_min, _, _ = _grid_shape(_xy_bounds(host), step, origin)
+    step32 = np.float32(step)
+    col = np.floor((host[:, 0] - np.float32(x_min)) / step32)
+    row = np.floor((host[:, 1] - np.float32(y_min)) / step32)
+    col = np.clip(col, -_MAX_COORD, _MAX_COORD).astype(np.int64)
+    row = np.clip(row, -_MAX_COORD, _MAX_COORD).astype(np.int64)
+    span = 2 * _MAX_COORD + 1
+    keys, inverse = np.unique((col + _MAX_COORD) * span + (row + _MAX_COORD), return_inverse=True)
+    cell_np = inverse.astype(np.int32).reshape(-1)
+    cell = cell_np
+    if is_ndarray(xyz):
+        cell = ndarray(ti.i32, (len(cell_np),))
+        cell.from_numpy(cell_np)
+    col_row = np.column_stack([keys // span - _MAX_COORD, keys % span - _MAX_COORD])
+    return cell, _lowest_per_cell(pts, cell, len(keys), xyz), col_row
 
 
 def _empty_as_minus_one(cell_lowest):
@@ -106,15 +166,20 @@ def _empty_as_minus_one(cell_lowest):
     return cell_lowest
 
 
-def slope_filter(xyz, step: float, slope_max: float, dh_max: float):
+def slope_filter(xyz, step: float, slope_max: float, dh_max: float, origin=None):
     """METHODS.md R4: keep a point when its slope to its cell's lowest point is below
-    ``slope_max`` and its height above that point is below ``dh_max`` (metres).
+    ``slope_max`` and its height above that point is below ``dh_max`` (metres). Dense or sparse
+    cells (module docstring): the same result. ``origin`` (x_min, y_min): the grid's corner
+    instead of the points' minimum (the stage passes the minimum without far stray points).
 
     Returns ``(keep, height_above_cell_min)``: uint8 keep flags and float32 dh per point.
     """
     pts = kernel_array(xyz, "float32")
     n = int(pts.shape[0])
-    cell, cell_lowest, _ = cell_minimum(pts, step)
+    if n and not dense_fits(pts, step, origin):
+        cell, cell_lowest, _ = sparse_cell_minimum(pts, step, origin)
+    else:
+        cell, cell_lowest, _ = cell_minimum(pts, step, origin)
     height = output_array(ti.f32, (n,), xyz)
     keep = output_array(ti.u8, (n,), xyz)
     _slope_test(pts, cell, cell_lowest, height, keep, float(slope_max), float(dh_max))

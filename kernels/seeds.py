@@ -37,6 +37,11 @@ non-roof point q joins a roof when
   cell (ties: lower cell id).
 Every decision reads only the grid built from the roof points before any point joins, so the
 result does not depend on order (one pass, no chains).
+A point's decision reads roof cells within max(inside_reach, wall_reach) only: when the grid over
+the roof points' bounding box would hold more than FOOTPRINT_CELLS_PER_POINT cells per point
+(roofs far apart, a stray roof point), it is laid over blocks of FOOTPRINT_BLOCK cells that hold
+or border roof cells, each with the roof cells within reach around it, on the same cell lattice:
+the same result with memory bounded by the points.
 """
 
 import math
@@ -44,8 +49,12 @@ import math
 import numpy as np
 from .taichi_compat import ti
 
-from .common import (INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, kernel_array, length, like_input,
-                     ndarray, output_array)
+from .common import (INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, is_ndarray, kernel_array, length,
+                     like_input, ndarray, output_array, to_numpy)
+
+FOOTPRINT_CELLS_PER_POINT = 4
+FOOTPRINT_MIN_CELLS = 1 << 20
+FOOTPRINT_BLOCK = 256            # cells per block edge of the blocked footprint grid
 
 
 def required_planar_neighbours(plane_coef: float, k: int) -> int:
@@ -266,23 +275,24 @@ def grow_roof_segments(knn_indices, edge_ok, seed, *, curvature=None, expand_cur
 
 
 @ti.func
-def _cell_index(x: ti.f32, y: ti.f32, x0: ti.f32, y0: ti.f32, cell: ti.f32, n_cols: ti.i32,
-                n_rows: ti.i32) -> ti.math.ivec2:
-    col = ti.cast(ti.floor((x - x0) / cell), ti.i32)
-    row = ti.cast(ti.floor((y - y0) / cell), ti.i32)
+def _cell_index(x: ti.f32, y: ti.f32, x0: ti.f32, y0: ti.f32, cell: ti.f32, col0: ti.i32,
+                row0: ti.i32) -> ti.math.ivec2:
+    # the lattice is fixed by x0, y0 (whole grid); col0, row0: first column and row of this grid
+    col = ti.cast(ti.floor((x - x0) / cell), ti.i32) - col0
+    row = ti.cast(ti.floor((y - y0) / cell), ti.i32) - row0
     return ti.math.ivec2(col, row)
 
 
 @ti.kernel
 def _footprint_cells(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
                      segment: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                     x0: ti.f32, y0: ti.f32, cell: ti.f32, n_cols: ti.i32, n_rows: ti.i32,
+                     x0: ti.f32, y0: ti.f32, cell: ti.f32, col0: ti.i32, row0: ti.i32, n_cols: ti.i32,
                      first: ti.types.ndarray(dtype=ti.i32, ndim=1),
                      z_low: ti.types.ndarray(dtype=ti.i32, ndim=1),
                      z_high: ti.types.ndarray(dtype=ti.i32, ndim=1)):
     for i in segment:
         if segment[i] >= 0:
-            c = _cell_index(xyz[i, 0], xyz[i, 1], x0, y0, cell, n_cols, n_rows)
+            c = _cell_index(xyz[i, 0], xyz[i, 1], x0, y0, cell, col0, row0)
             k = c[1] * n_cols + c[0]
             ti.atomic_min(first[k], i)
             key = f32_order_key(xyz[i, 2])
@@ -295,7 +305,8 @@ def _attach_footprint(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
                       segment: ti.types.ndarray(dtype=ti.i32, ndim=1),
                       off_surface_ok: ti.types.ndarray(dtype=ti.u8, ndim=1),
                       eligible: ti.types.ndarray(dtype=ti.u8, ndim=1),
-                      x0: ti.f32, y0: ti.f32, cell: ti.f32, n_cols: ti.i32, n_rows: ti.i32,
+                      x0: ti.f32, y0: ti.f32, cell: ti.f32, col0: ti.i32, row0: ti.i32,
+                      n_cols: ti.i32, n_rows: ti.i32,
                       first: ti.types.ndarray(dtype=ti.i32, ndim=1),
                       z_low: ti.types.ndarray(dtype=ti.i32, ndim=1),
                       z_high: ti.types.ndarray(dtype=ti.i32, ndim=1),
@@ -304,7 +315,7 @@ def _attach_footprint(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
     for i in segment:
         label = segment[i]
         if label < 0 and eligible[i] != 0:
-            c = _cell_index(xyz[i, 0], xyz[i, 1], x0, y0, cell, n_cols, n_rows)
+            c = _cell_index(xyz[i, 0], xyz[i, 1], x0, y0, cell, col0, row0)
             z = xyz[i, 2]
             if c[0] >= 0 and c[0] < n_cols and c[1] >= 0 and c[1] < n_rows:
                 # inside test: the first roof cell along each axis direction
@@ -378,26 +389,81 @@ def attach_to_footprints(xyz, segment, off_surface_ok=None, eligible=None, *, ce
         if n:
             out.from_numpy(seg_np.astype(np.int32))
         return like_input(out, segment)
-    xy = (pts.to_numpy() if hasattr(pts, "to_numpy") else np.asarray(pts))[roof, :2]
+    host = to_numpy(pts)
+    xy = host[roof, :2]
     margin = max(inside_reach, wall_reach) + cell
     x0, y0 = float(xy[:, 0].min() - margin), float(xy[:, 1].min() - margin)
     n_cols = int(np.floor((xy[:, 0].max() + margin - x0) / cell)) + 1
     n_rows = int(np.floor((xy[:, 1].max() + margin - y0) / cell)) + 1
-    if n_cols * n_rows >= INT32_MAX:
-        raise ValueError(f"a {n_cols} x {n_rows} footprint grid at {cell} m exceeds 32-bit indexing; tile the input")
+    reach = (int(math.ceil(round(inside_reach / cell, 9))), int(math.ceil(round(wall_reach / cell, 9))))
+    ok = np.ones(n, np.uint8) if off_surface_ok is None else to_numpy(off_surface_ok).astype(np.uint8)
+    elig = np.ones(n, np.uint8) if eligible is None else to_numpy(eligible).astype(np.uint8)
+    if n_cols * n_rows <= FOOTPRINT_CELLS_PER_POINT * n + FOOTPRINT_MIN_CELLS:
+        _attach_on_grid(pts, seg, ok, elig, (x0, y0, cell), (0, 0, n_cols, n_rows), reach,
+                        surface_tol, out)
+        return like_input(out, segment)
+    result = seg_np.astype(np.int32).copy()
+    _attach_by_blocks(host, seg_np, ok, elig, (x0, y0, cell), reach, surface_tol, result)
+    out.from_numpy(result)
+    return like_input(out, segment)
+
+
+def _attach_on_grid(pts, seg, ok, elig, lattice, window, reach, surface_tol, out):
+    """The footprint kernels on the grid of ``window`` = (col0, row0, n_cols, n_rows) cells of
+    the lattice (x0, y0, cell); every roof point of ``seg`` must lie inside the window."""
+    x0, y0, cell = lattice
+    col0, row0, n_cols, n_rows = window
     first = ndarray(ti.i32, (n_cols * n_rows,))
     z_low = ndarray(ti.i32, (n_cols * n_rows,))
     z_high = ndarray(ti.i32, (n_cols * n_rows,))
     first.fill(INT32_MAX)
     z_low.fill(INT32_MAX)
     z_high.fill(-INT32_MAX - 1)
-    ok = as_ndarray(np.ones(n, np.uint8) if off_surface_ok is None else off_surface_ok, "uint8")
-    _footprint_cells(pts, seg, x0, y0, float(cell), n_cols, n_rows, first, z_low, z_high)
-    elig = as_ndarray(np.ones(n, np.uint8) if eligible is None else eligible, "uint8")
-    _attach_footprint(pts, seg, ok, elig, x0, y0, float(cell), n_cols, n_rows, first, z_low, z_high,
-                      int(math.ceil(round(inside_reach / cell, 9))),
-                      int(math.ceil(round(wall_reach / cell, 9))), float(surface_tol), out)
-    return like_input(out, segment)
+    ok, elig = as_ndarray(ok, "uint8"), as_ndarray(elig, "uint8")
+    _footprint_cells(pts, seg, x0, y0, float(cell), col0, row0, n_cols, first, z_low, z_high)
+    _attach_footprint(pts, seg, ok, elig, x0, y0, float(cell), col0, row0, n_cols, n_rows, first,
+                      z_low, z_high, reach[0], reach[1], float(surface_tol), out)
+
+
+def _attach_by_blocks(xyz, seg, ok, elig, lattice, reach, surface_tol, result):
+    """attach_to_footprints over blocks of FOOTPRINT_BLOCK cells holding or bordering roof cells
+    (module docstring); writes the labels of the points of those blocks into ``result``."""
+    x0, y0, cell = lattice
+    # the kernels' own float32 arithmetic for the cells
+    cells = [np.clip(np.floor((xyz[:, a] - np.float32(o)) / np.float32(cell)), -2**30, 2**30).astype(np.int64)
+             for a, o in ((0, x0), (1, y0))]
+    col, row = cells
+    halo = max(reach) + 1
+    shift = np.int64(1 << 32)
+    # block coordinates + 2: the roof points' blocks and their neighbours are >= 0
+    block_key = (col // FOOTPRINT_BLOCK + 2) * shift + (row // FOOTPRINT_BLOCK + 2)
+    roof = seg >= 0
+    ring = np.array([dc * shift + dr for dc in (-1, 0, 1) for dr in (-1, 0, 1)], np.int64)
+    around = np.unique(np.unique(block_key[roof])[:, None] + ring[None, :])
+    order = np.argsort(block_key, kind="stable")
+    sorted_key = block_key[order]
+
+    def points_of(keys):
+        lo, hi = np.searchsorted(sorted_key, keys, "left"), np.searchsorted(sorted_key, keys, "right")
+        return np.concatenate([order[a:b] for a, b in zip(lo, hi)])
+
+    for b in around:
+        core = points_of([b])
+        if not len(core) or not ((~roof[core]) & (elig[core] != 0)).any():
+            continue
+        bc, br = divmod(int(b), int(shift))
+        col0, row0 = (bc - 2) * FOOTPRINT_BLOCK - halo, (br - 2) * FOOTPRINT_BLOCK - halo
+        size = FOOTPRINT_BLOCK + 2 * halo
+        near = points_of(b + ring)
+        near = near[roof[near] & (col[near] >= col0) & (col[near] < col0 + size)
+                    & (row[near] >= row0) & (row[near] < row0 + size)]
+        members = np.union1d(core, near)       # ascending: ties by point index as on one grid
+        part = np.empty(len(members), np.int32)
+        _attach_on_grid(np.ascontiguousarray(xyz[members]), np.ascontiguousarray(seg[members], np.int32),
+                        ok[members], elig[members], lattice, (col0, row0, size, size), reach,
+                        surface_tol, part)
+        inside = np.isin(members, core, assume_unique=True)
+        result[members[inside]] = part[inside]
 
 
 __all__ = ["seed_constraints", "required_planar_neighbours", "roof_growth_edges",

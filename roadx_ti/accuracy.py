@@ -9,7 +9,6 @@ per dataset into the output folder.
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import time
 from pathlib import Path
@@ -219,8 +218,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def main(args) -> int:
-    from roadx_ti import backend
-    from roadx_ti.report import write_json
+    from roadx_ti import backend, jsonio
     from roadx_ti.io.atomic import atomic_output
 
     out = Path(args.out)
@@ -229,9 +227,9 @@ def main(args) -> int:
     tasks = ["road", "roof"] if args.task == "all" else [args.task]
     results = {task: evaluate(task, out, args.points) for task in tasks}
     command = f"python -m roadx_ti accuracy --task {args.task} --points {args.points}"
-    write_json(out / "accuracy.json", {"command": command, "results": results})
+    jsonio.write(out / "accuracy.json", {"command": command, "results": results})
     with atomic_output(out / "ACCURACY.md") as tmp:
         Path(tmp).write_text(render(results, command))
-    print(json.dumps({t: [(r["dataset"], round(r["type1"], 4), round(r["type2"], 4), round(r["kappa"], 4))
-                          for r in rows] for t, rows in results.items()}, indent=1))
+    print(jsonio.dumps({t: [(r["dataset"], round(r["type1"], 4), round(r["type2"], 4), round(r["kappa"], 4))
+                            for r in rows] for t, rows in results.items()}, indent=1))
     return 0

@@ -42,6 +42,8 @@ import time
 import traceback
 from pathlib import Path
 
+from roadx_ti import jsonio
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 BENCH_DIR = REPO_ROOT / "benchmarks"        # the cases, RESULTS.md and throughput.png
 DEFAULT_OUT = BENCH_DIR / "out"
@@ -125,7 +127,7 @@ def main(args) -> int:
     out_dir = plan["out"]
     out_dir.mkdir(parents=True, exist_ok=True)
     json_path = out_dir / f"bench-{run['meta']['run_id']}.json"
-    json_path.write_text(json.dumps(run, indent=1))
+    json_path.write_text(jsonio.dumps(run, indent=1))
     results = args.results or (out_dir / "RESULTS.md" if args.quick else BENCH_DIR / "RESULTS.md")
     plot = args.plot or results.with_name("throughput.png")
     write_results([run], results, plot)
@@ -406,7 +408,7 @@ def worker_main(spec_path: str) -> int:
     out = open(spec["rows_path"], "a", buffering=1)
 
     def emit(record):
-        out.write(json.dumps(record) + "\n")
+        out.write(jsonio.dumps(record) + "\n")
         out.flush()
 
     row_backend = _row_backend(backend)

@@ -6,16 +6,18 @@ never a traceback.
 from __future__ import annotations
 
 import argparse
-import json
 import logging
+import os
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from roadx_ti import __version__
+from roadx_ti import __version__, jsonio
 from roadx_ti.config import parse_point_count
+from roadx_ti.errors import DataError  # a data mistake: exit 1
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
 log = logging.getLogger("roadx_ti")
@@ -23,10 +25,6 @@ log = logging.getLogger("roadx_ti")
 
 class UsageError(Exception):
     """A usage mistake (exit 2)."""
-
-
-class DataError(Exception):
-    """A data mistake (exit 1)."""
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -47,6 +45,9 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--tile-size", type=float, metavar="M", help="core tile edge in metres (inf: untiled)")
     r.add_argument("--buffer", type=float, metavar="M", help="tile buffer in metres")
     r.add_argument("--output-mode", choices=["merged", "per-file"], help="tiled runs: merged or per-file output")
+    r.add_argument("--memory-limit", metavar="SIZE", help="memory the run may use in total, e.g. 8G "
+                   "(default: what the machine has available); runs that would need more stop, or run "
+                   "in tiles with --set tiling.auto=true")
 
     e = sub.add_parser("eval", help="score a prediction against truth (matched by point order)")
     e.add_argument("--pred", required=True, metavar="PRED")
@@ -92,6 +93,12 @@ def _setup_logging(quiet: bool) -> None:
     root.handlers[:] = [handler]
     root.setLevel(logging.WARNING if quiet else logging.INFO)
     root.propagate = False
+    # libraries' own log lines (laspy on odd headers) would add lines of their own to a one-line
+    # message; what matters in them reaches the user through our messages
+    for name in ("laspy", "lazrs"):
+        library = logging.getLogger(name)
+        library.handlers[:] = [logging.NullHandler()]
+        library.propagate = False
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -105,9 +112,15 @@ def main(argv: list[str] | None = None) -> int:
     from roadx_ti.config import ConfigError
     from roadx_ti.io import InputError
 
+    previous = _terminate_like_interrupt()
     try:
-        return {"run": cmd_run, "eval": cmd_eval, "info": cmd_info, "synth": cmd_synth,
-                "accuracy": cmd_accuracy, "bench": cmd_bench}[args.command](args)
+        with warnings.catch_warnings():
+            # numpy's RuntimeWarning / UserWarning on absurd values (a header offset of 1e308, an
+            # empty text table) would print lines of their own: the data checks report them
+            warnings.simplefilter("ignore", RuntimeWarning)
+            warnings.simplefilter("ignore", UserWarning)
+            return {"run": cmd_run, "eval": cmd_eval, "info": cmd_info, "synth": cmd_synth,
+                    "accuracy": cmd_accuracy, "bench": cmd_bench}[args.command](args)
     except (ConfigError, UsageError, BackendError) as exc:   # BackendError: --backend not on this machine
         print(f"roadx_ti: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -118,9 +131,75 @@ def main(argv: list[str] | None = None) -> int:
         # `roadx_ti info x | head`: the reader left; not an error of ours
         sys.stderr.close()
         return EXIT_OK
+    except Terminated as exc:
+        print(f"roadx_ti: stopped by {exc.name}; no partial output was left", file=sys.stderr)
+        return 128 + exc.number
     except KeyboardInterrupt:
-        print("roadx_ti: interrupted; no output was written", file=sys.stderr)
+        print("roadx_ti: interrupted; no partial output was left", file=sys.stderr)
         return 130
+    except MemoryError:
+        print("roadx_ti: out of memory; run in tiles (--tile-size) or on fewer points", file=sys.stderr)
+        return EXIT_DATA
+    except Exception as exc:   # a case nobody foresaw: one line (ROADX_TI_TRACEBACK=1 shows where)
+        if _RECEIVED:          # a signal raised inside a library callback, which wrapped it
+            number = _RECEIVED[0]
+            print(f"roadx_ti: stopped by {Terminated(number).name}; no partial output was left", file=sys.stderr)
+            return 128 + number
+        if os.environ.get("ROADX_TI_TRACEBACK"):
+            raise
+        text = " ".join(str(exc).split())[:300] or "(no message)"
+        print(f"roadx_ti: unexpected error: {type(exc).__name__}: {text} "
+              "(set ROADX_TI_TRACEBACK=1 for the traceback, and please report it)", file=sys.stderr)
+        return EXIT_DATA
+    finally:
+        _restore_signals(previous)
+
+
+_RECEIVED: list = []     # termination signals received during this main()
+
+
+class Terminated(BaseException):
+    """SIGTERM / SIGHUP received: unwinds like Ctrl-C, so temporary files are removed."""
+
+    def __init__(self, number: int):
+        import signal
+
+        super().__init__(number)
+        self.number = number
+        self.name = signal.Signals(number).name
+
+
+def _terminate_like_interrupt() -> dict:
+    """SIGTERM and SIGHUP raise Terminated, SIGINT KeyboardInterrupt, and each is remembered (a
+    library that calls back into Python may wrap the exception: main() still reports the signal);
+    main thread only; returns the previous handlers. A run stopped by a batch scheduler or a
+    closed terminal unwinds and removes its temporary files instead of dying with them."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+
+    def handler(number, frame):
+        _RECEIVED.append(number)
+        if number == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise Terminated(number)
+
+    previous = {}
+    _RECEIVED.clear()
+    for name in ("SIGTERM", "SIGHUP", "SIGINT"):
+        number = getattr(signal, name, None)
+        if number is not None:
+            previous[number] = signal.signal(number, handler)
+    return previous
+
+
+def _restore_signals(previous: dict) -> None:
+    import signal
+
+    for number, handler in previous.items():
+        signal.signal(number, handler)
 
 
 # --------------------------------------------------------------------------------------- run
@@ -139,7 +218,7 @@ def cmd_run(args) -> int:
     overrides = list(args.set)
     for flag, key in (("workers", "executor.workers"), ("scheduler", "executor.scheduler"),
                       ("tile_size", "tiling.tile_size"), ("buffer", "tiling.buffer"),
-                      ("output_mode", "output.mode")):
+                      ("output_mode", "output.mode"), ("memory_limit", "memory_limit")):
         value = getattr(args, flag)
         if value is not None:
             overrides.append(f"{key}={value}")
@@ -156,6 +235,11 @@ def cmd_run(args) -> int:
         if not Path(p).exists():
             raise config.ConfigError(f"config error: input.paths = {p!r}: no such file")
     out = Path(cfg.output.path)
+    if cfg.memory_limit:
+        from roadx_ti import memory
+        os.environ[memory.LIMIT_VARIABLE] = cfg.memory_limit     # also seen by local Dask workers
+    if not cfg.tiled:
+        _check_memory(cfg, _points_before_reading(cfg))
     if cfg.tiled:
         return _run_tiled(cfg, out, args)
     _prepare_output(out, cfg.input.paths)
@@ -175,6 +259,16 @@ def cmd_run(args) -> int:
     log.info("read %d points from %s in %.2f s", cloud.n, cloud.source, read_s)
     if cloud.n == 0:
         raise DataError(f"{cloud.source}: the input holds no points")
+    if cloud.las is None and out.suffix.lower() in (".las", ".laz"):
+        from roadx_ti.io.las import fits_new_file
+        if not fits_new_file(cloud.xyz):     # say it now, not after the whole pipeline
+            raise DataError(f"{out}: the points of {cloud.source} span more than +-2147 km from their origin, "
+                            "which a LAS file at 1 mm scale cannot hold; split the cloud or write .ply/.npz")
+    if _points_before_reading(cfg) is None:        # formats without a header count: now it is known
+        _check_memory(cfg, cloud.n, cloud)
+        if cfg.tiled:
+            del cloud
+            return _run_tiled(cfg, out, args)
 
     arch = backend.init(cfg.backend, threads=cfg.threads)
     log.info("Taichi backend: %s", arch)
@@ -221,9 +315,12 @@ def cmd_run(args) -> int:
             if cfg.output.dtm is not None:
                 log.warning("output.dtm: no cloth stage ran, so there is no DTM to write")
         else:
+            if ctx.facts.get("cloth_parts", 1) > 1:
+                log.warning("output.dtm: the cloud is %d parts more than 100 m apart; the DTM covers the "
+                            "largest (a raster over all would be sized by the gaps)", ctx.facts["cloth_parts"])
             summary["dtm"] = _write_dtm(dtm_path, ctx.facts["cloth"], cloud)
     from roadx_ti import report
-    report.write_json(paths["summary"], summary)
+    jsonio.write(paths["summary"], summary)
     with io.atomic_output(paths["config"]) as tmp:
         Path(tmp).write_text(config.dump(cfg))
     if cfg.output.report_png:
@@ -259,6 +356,64 @@ def _write_dtm(path: Path, cloth, cloud) -> dict:
             "y_lower_left": t["y_lower_left"], "valid_cells": t["valid_cells"]}
 
 
+def _points_before_reading(cfg):
+    """The run's point count from the LAS header or the synthetic scene's size (None otherwise)."""
+    if cfg.input.synthetic is not None and not cfg.input.paths:
+        return cfg.input.synthetic.points
+    from roadx_ti import io
+
+    path = Path(cfg.input.paths[0])
+    if path.suffix.lower() not in (".las", ".laz") or not path.is_file():
+        return None
+    try:
+        return io.read_headers([path])[0][2]
+    except io.InputError:
+        return None                   # the read will say what is wrong with the file
+
+
+def _check_memory(cfg, points, cloud=None) -> None:
+    """Stop with one line, or switch to tiles (tiling.auto), when the run's memory estimate
+    exceeds what it may use (roadx_ti/memory.py)."""
+    from roadx_ti import memory
+
+    if points is None:
+        return
+    ok, need, budget = memory.fits(cfg.pipeline, points)
+    if ok:
+        return
+    fit = memory.points_that_fit(cfg.pipeline, budget)
+    size = _tile_size_for(cfg, points, max(fit // 2, 1), cloud)
+    said = (f"{points:,} points through the {cfg.pipeline} pipeline need about "
+            f"{memory.format_size(need * memory.SAFETY)}, more than the {memory.format_size(budget)} this run may use")
+    if size is None or not cfg.input.paths or fit < 1000:
+        raise DataError(f"{said}: run on fewer points (e.g. a smaller synthetic scene) or with more memory")
+    if cfg.tiling.auto:
+        log.warning("%s: running in tiles of %g m (tiling.auto)", said, size)
+        cfg.tiling.tile_size = size
+        return
+    raise DataError(f"{said}: run in tiles (--tile-size {size:g}, about {fit // 2:,} points per tile) "
+                    "or set tiling.auto: true (--set tiling.auto=true)")
+
+
+def _tile_size_for(cfg, points, target, cloud=None):
+    """Tile edge (m) of about ``target`` points at the input's mean density (header bounds, or the
+    cloud's bounds once read); None without bounds."""
+    from roadx_ti import io, memory
+
+    if cloud is not None and cloud.n:
+        lo, hi = cloud.xyz[:, :2].min(axis=0), cloud.xyz[:, :2].max(axis=0)
+    elif cfg.input.paths:
+        try:
+            bounds = io.read_headers([cfg.input.paths[0]])[0][1]
+        except io.InputError:
+            return None
+        lo, hi = bounds[:2], bounds[2:]
+    else:
+        return None
+    area = max(float(hi[0] - lo[0]), 1.0) * max(float(hi[1] - lo[1]), 1.0)
+    return memory.tile_size_for(points, area, target)
+
+
 def _prepare_output(out: Path, inputs) -> None:
     """Refuse a bad output before any work: an unknown format, an input, an impossible folder."""
     from roadx_ti import io
@@ -291,7 +446,7 @@ def _run_tiled(cfg, out: Path, args) -> int:
             raise UsageError(f"{out}: tiled runs write LAS/LAZ, not COPC yet (COPC needs all points at "
                              "once); write .laz and convert it, e.g. pdal translate x.laz x.copc.laz")
         _make_parent(out)
-        io.check_output_path(out, [f.path for f in tiling.catalog(cfg.input.paths)])
+        io.check_output_path(out, [f.path for f in tiling.catalog(cfg.input.paths, warn=False)])
     else:
         out.mkdir(parents=True, exist_ok=True)
     try:
@@ -352,7 +507,7 @@ def cmd_eval(args) -> int:
             raise DataError(f"{name} has no classification")
     result = scores(class_mask(truth.classification, truth_classes), class_mask(pred.classification, pred_classes))
     result["truth_classes"], result["pred_classes"] = truth_classes, pred_classes
-    print(json.dumps(result))
+    print(jsonio.dumps(result))
     return EXIT_OK
 
 
@@ -363,7 +518,7 @@ def cmd_info(args) -> int:
     from roadx_ti.io.describe import text
 
     info = io.info(args.path)
-    print(text(info) if args.text else json.dumps(info, indent=2, default=str, allow_nan=False))
+    print(text(info) if args.text else jsonio.dumps(info, indent=2))
     return EXIT_OK
 
 

@@ -89,10 +89,13 @@ class Cloud:
     @classmethod
     def from_world(cls, xyz_world: np.ndarray, origin: np.ndarray | None = None, **kw) -> "Cloud":
         """Build a cloud from float64 world coordinates, choosing a local origin when not given
-        (the floor of the minimum corner, so local coordinates are small and non-negative)."""
+        (the floor of the minimum corner, so local coordinates are small and non-negative; far
+        isolated points left out: roadx_ti.isolation.local_origin)."""
+        from roadx_ti.isolation import local_origin
+
         xyz_world = np.asarray(xyz_world, dtype=np.float64)
         if origin is None:
-            origin = np.floor(xyz_world.min(axis=0)) if len(xyz_world) else np.zeros(3)
+            origin = local_origin(xyz_world) if len(xyz_world) else np.zeros(3)
         local = (xyz_world - origin).astype(np.float32)
         return cls(xyz=local, origin=origin, **kw)
 

@@ -68,12 +68,16 @@ class TilingConfig(_Strict):
                                     "per tile at the data's density; .inf: untiled")
     buffer: float | None = Field(None, ge=0, description="buffer on every side of a tile (m); null: the "
                                  "largest spatial reach of the stages")
+    auto: bool = Field(False, description="run in tiles when the run's memory estimate exceeds the memory "
+                       "it may use (roadx_ti/memory.py); false: stop with one line suggesting a tile size")
 
 
 class ExecutorConfig(_Strict):
     workers: int | None = Field(None, ge=1, description="start a local Dask cluster of this many processes")
     scheduler: str | None = Field(None, pattern=r"^(tcp|tls|inproc|ucx)://", description="address of an "
                                   "existing Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    connect_timeout: float = Field(5.0, gt=0, description="seconds to reach the scheduler before the run stops")
+    worker_timeout: float = Field(30.0, gt=0, description="seconds to wait for the scheduler's first worker")
 
 
 class EvaluateConfig(_Strict):
@@ -91,6 +95,8 @@ class RunConfig(_Strict):
     output: OutputConfig = Field(default_factory=OutputConfig)
     backend: Literal[_backend.CHOICES] = "auto"  # type: ignore[valid-type]
     threads: int | None = Field(None, ge=1, description="CPU threads for Taichi (default: all)")
+    memory_limit: str | None = Field(None, description="memory the run may use in total, e.g. 8G or 512M "
+                                     "(default: what this machine has available)")
     seed: int = Field(0, ge=0, description="seed of every random choice (RANSAC hypotheses)")
     evaluate: EvaluateConfig = Field(default_factory=EvaluateConfig)
     tiling: TilingConfig = Field(default_factory=TilingConfig)
@@ -121,6 +127,14 @@ class RunConfig(_Strict):
             except TypeError:
                 raise ConfigError(f"stages[{i}].{name}: options must be a mapping, got {opts!r}") from None
         return out
+
+    @field_validator("memory_limit")
+    @classmethod
+    def _memory_size(cls, value):
+        if value is not None:
+            from roadx_ti.memory import parse_size
+            parse_size(value)
+        return value
 
     @model_validator(mode="after")
     def _one_executor(self):

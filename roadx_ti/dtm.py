@@ -13,13 +13,13 @@ of the points it was run on, buffer included.
 """
 from __future__ import annotations
 
-import json
 import logging
 import math
 from pathlib import Path
 
 import numpy as np
 
+from roadx_ti import jsonio
 from roadx_ti.io.atomic import atomic_output
 
 FORMATS = (".tif", ".tiff", ".asc", ".npy")
@@ -86,7 +86,7 @@ def write(path, result, origin, *, xy: np.ndarray | None = None, crs=None) -> di
         with atomic_output(path) as tmp:
             np.save(tmp, heights.astype(np.float32))
         with atomic_output(path.with_suffix(".json")) as tmp:
-            Path(tmp).write_text(json.dumps(t | {"nodata": "NaN", "crs": crs.to_wkt() if crs else None},
+            Path(tmp).write_text(jsonio.dumps(t | {"nodata": "NaN", "crs": crs.to_wkt() if crs else None},
                                             indent=2) + "\n")
         return t
     north_first = np.where(np.isnan(heights), NODATA, heights)[::-1]

@@ -12,8 +12,9 @@ How a run goes:
    only from the files whose box meets that window (io.read(path, bounds=window, origin=shared)).
 3. ``run_tile`` (on any executor) runs the whole pipeline on the window and keeps the labels of its
    core points only. Cores are half-open [x0, x1) x [y0, y1), so every point has exactly one core.
-   A point's core is found with ``np.searchsorted`` on the grid edges everywhere (workers and merge),
-   so all parts of the run agree on it bit for bit.
+   A point's core is found by ``CoreGrid.cells`` everywhere (workers and merge), so all parts of
+   the run agree on it bit for bit. Only occupied cores are tiles: a file whose header box spans
+   many cores is scanned for the cores its points occupy, and nothing is allocated per grid cell.
 4. Segments cut by a core border are reconciled: a tile returns, per neighbour, the segment ids of
    its buffer points that are the neighbour's core points, and the ids of its core points inside
    the neighbour's window; both lists hold the same points in the same (catalog, file) order, so
@@ -24,6 +25,7 @@ How a run goes:
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import ctypes
 import logging
@@ -39,7 +41,8 @@ from pathlib import Path
 import numpy as np
 
 from roadx_ti.cloud import Cloud
-from roadx_ti.stages.base import SURVEY_Z_MIN
+from roadx_ti.errors import DataError
+from roadx_ti.stages.base import SURVEY_POINTS, SURVEY_Z_MIN
 
 log_default = logging.getLogger("roadx_ti")
 
@@ -56,6 +59,17 @@ class TileError(RuntimeError):
     """A tile failed (after its retries); the message names it by its bounds. Nothing was written."""
 
 
+class ClusterError(DataError):
+    """The Dask cluster cannot run the tiles (unreachable scheduler, no workers, workers with
+    another environment or without the inputs); one line, raised before any tile runs."""
+
+
+CONNECT_TIMEOUT = 5.0            # s: reaching the scheduler
+WORKER_TIMEOUT = 30.0            # s: waiting for the first worker
+# what must match between the client and every worker (README, Scale-out)
+ENVIRONMENT_PACKAGES = ("numpy", "laspy", "lazrs", "scipy", "dask", "distributed")
+
+
 # ------------------------------------------------------------------------------------- catalog
 
 @dataclass(frozen=True)
@@ -66,9 +80,39 @@ class CatalogFile:
     z_range: tuple = (math.inf, -math.inf)   # header (zmin, zmax)
 
 
-def catalog(inputs) -> list[CatalogFile]:
-    """The input files in order: each given file, or a folder's point-cloud files sorted by name.
-    Bounds and counts come from the headers (io.read_headers)."""
+LAS_SUFFIXES = (".las", ".laz")      # .copc.laz included
+
+
+def folder_files(folder: Path, warn: bool = True) -> list[Path]:
+    """The point-cloud files of a catalog folder, sorted by name: its LAS/LAZ/COPC files when it
+    holds any, else the files of the point-cloud format it holds most of (ties: io.EXTENSIONS
+    order). Other files (a readme.txt, a .prj, a format in the minority) are skipped with one
+    warning line; hidden files (a killed run's .partial file, .DS_Store) and sub-folders silently."""
+    from roadx_ti import io
+
+    entries = sorted(q for q in folder.iterdir() if not q.name.startswith(".") and q.is_file())
+    families = {}
+    for q in entries:
+        suffix = q.suffix.lower()
+        if suffix in io.EXTENSIONS:
+            families.setdefault("las" if suffix in LAS_SUFFIXES else suffix, []).append(q)
+    if not families:
+        raise io.InputError(f"{folder}: folder holds no point-cloud files ({' '.join(io.EXTENSIONS)})")
+    order = ["las"] + [s for s in io.EXTENSIONS if s not in LAS_SUFFIXES]
+    chosen = "las" if "las" in families else max(families, key=lambda f: (len(families[f]), -order.index(f)))
+    found = families[chosen]
+    skipped = [q.name for q in entries if q not in found]
+    if skipped and warn:
+        kind = "LAS/LAZ" if chosen == "las" else chosen
+        shown = ", ".join(skipped[:5]) + (f" and {len(skipped) - 5} more" if len(skipped) > 5 else "")
+        log_default.warning("%s: the catalog is its %d %s file(s); skipped %d other file(s): %s",
+                            folder, len(found), kind, len(skipped), shown)
+    return found
+
+
+def catalog(inputs, warn: bool = True) -> list[CatalogFile]:
+    """The input files in order: each given file, or a folder's point-cloud files sorted by name
+    (``folder_files``). Bounds and counts come from the headers (io.read_headers)."""
     from roadx_ti import io
 
     if isinstance(inputs, (str, os.PathLike)):
@@ -77,10 +121,7 @@ def catalog(inputs) -> list[CatalogFile]:
     for given in inputs:
         p = Path(given)
         if p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.is_file() and q.suffix.lower() in io.EXTENSIONS)
-            if not found:
-                raise io.InputError(f"{p}: folder holds no point-cloud files ({' '.join(io.EXTENSIONS)})")
-            paths.extend(str(q) for q in found)
+            paths.extend(str(q) for q in folder_files(p, warn))
         else:
             paths.append(str(p))
     if not paths:
@@ -130,10 +171,54 @@ def default_tile_size(files: list[CatalogFile], target_points: int = TARGET_TILE
     return TILE_SIZE_STEP * math.ceil(math.sqrt(target_points / density) / TILE_SIZE_STEP)
 
 
-def cells(x_edges, y_edges, x, y) -> tuple[np.ndarray, np.ndarray]:
-    """(col, row) of the core cells holding world points x, y: x_edges[col] <= x < x_edges[col+1]
-    (-1 or len(edges)-1 outside the grid). The one test of core membership, used everywhere."""
-    return (np.searchsorted(x_edges, x, side="right") - 1, np.searchsorted(y_edges, y, side="right") - 1)
+@dataclass(frozen=True)
+class CoreGrid:
+    """The core tile grid: column c is [x0 + sx * c, x0 + sx * (c + 1)), rows alike, cols x rows
+    cells. Grid lines are computed as ``x0 + sx * k`` in float64 (as np.arange-based edges were),
+    and a point's cell is the one whose half-open interval holds it exactly; nothing is
+    allocated per cell, so a grid over a huge extent costs nothing."""
+    x0: float
+    y0: float
+    sx: float
+    sy: float
+    cols: int
+    rows: int
+
+    def x_edge(self, k):
+        return self.x0 + self.sx * np.asarray(k, np.float64)
+
+    def y_edge(self, k):
+        return self.y0 + self.sy * np.asarray(k, np.float64)
+
+    @staticmethod
+    def _index(v, origin, step, count, edge):
+        v = np.asarray(v, np.float64)
+        with np.errstate(invalid="ignore", over="ignore"):
+            g = np.clip(np.floor((v - origin) / step), -1, count)
+        g = np.where(np.isnan(g), -1, g).astype(np.int64)
+        for _ in range(2):   # float rounding of the guess: at most a cell off either way
+            g = np.where((g >= 0) & (edge(np.maximum(g, 0)) > v), g - 1, g)
+            g = np.where((g < count) & (edge(np.minimum(g + 1, count)) <= v), g + 1, g)
+        return g
+
+    def cells(self, x, y) -> tuple[np.ndarray, np.ndarray]:
+        """(col, row) of the cells holding world points x, y: x_edge(col) <= x < x_edge(col+1);
+        -1 below the grid, cols (rows) at or beyond its far edge. The one test of core
+        membership, used everywhere."""
+        return (self._index(x, self.x0, self.sx, self.cols, self.x_edge),
+                self._index(y, self.y0, self.sy, self.rows, self.y_edge))
+
+    def key(self, col, row):
+        return np.asarray(row, np.int64) * np.int64(self.cols) + np.asarray(col, np.int64)
+
+    def describe(self) -> dict:
+        return {"x0": self.x0, "y0": self.y0, "sx": self.sx, "sy": self.sy, "cols": self.cols, "rows": self.rows}
+
+
+MAX_LISTED_EDGES = 10_000          # summaries list the grid lines of grids up to this many columns
+SCAN_CELLS = 16                    # a file whose header box meets more core cells is scanned for the
+                                   # cells its points occupy (a stray point stretches a header box)
+MAX_HEADER_CELLS = 1 << 20         # unscanned header boxes may mark at most this many cells
 
 
 @dataclass(frozen=True)
@@ -149,86 +234,158 @@ class Tile:
 
 @dataclass
 class TilePlan:
-    x_edges: np.ndarray    # float64 grid lines; core column c is [x_edges[c], x_edges[c+1])
-    y_edges: np.ndarray
+    grid: CoreGrid         # the core cells (x_edges / y_edges: their grid lines)
     tile_size: float       # inf for an untiled run (one core over everything)
     buffer: float
     read_origin: np.ndarray  # (3,) float64 local origin shared by every read
     tiles: list[Tile]
-    tile_of_cell: np.ndarray  # (rows, cols) int32: tile index, -1 where no file reaches
+    tile_keys: np.ndarray  # sorted int64 grid.key(col, row) of the cells that have a tile
+    tile_ids: np.ndarray   # int64 tile index of each of tile_keys
+
+    @property
+    def x_edges(self) -> np.ndarray:
+        return self.grid.x_edge(np.arange(self.grid.cols + 1))
+
+    @property
+    def y_edges(self) -> np.ndarray:
+        return self.grid.y_edge(np.arange(self.grid.rows + 1))
 
     def cells(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return cells(self.x_edges, self.y_edges, x, y)
+        return self.grid.cells(x, y)
 
     def tile_index(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Index of the tile whose core holds each point, -1 where none does."""
         col, row = self.cells(x, y)
-        inside = (col >= 0) & (col < len(self.x_edges) - 1) & (row >= 0) & (row < len(self.y_edges) - 1)
-        out = np.full(len(col), -1, np.int64)
-        out[inside] = self.tile_of_cell[row[inside], col[inside]]
-        return out
+        return tile_lookup(self.grid, self.tile_keys, self.tile_ids, col, row)
 
     def border_distance(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Distance (m) of each point to the nearest border of its core tile (inf untiled)."""
-        return _border_distance(self.x_edges, self.y_edges, x, y)
+        return _border_distance(self.grid, x, y)
 
     def describe(self) -> dict:
+        listed = self.grid.cols <= MAX_LISTED_EDGES and self.grid.rows <= MAX_LISTED_EDGES
         return {"tile_size": self.tile_size if np.isfinite(self.tile_size) else None,
-                "buffer": self.buffer, "grid_origin": [float(self.x_edges[0]), float(self.y_edges[0])],
-                "columns": len(self.x_edges) - 1, "rows": len(self.y_edges) - 1, "tiles": len(self.tiles),
-                "x_edges": self.x_edges.tolist(), "y_edges": self.y_edges.tolist(),
+                "buffer": self.buffer, "grid_origin": [float(self.grid.x0), float(self.grid.y0)],
+                "columns": self.grid.cols, "rows": self.grid.rows, "tiles": len(self.tiles),
+                "grid": self.grid.describe(),
+                "x_edges": self.x_edges.tolist() if listed else None,
+                "y_edges": self.y_edges.tolist() if listed else None,
                 "read_origin": self.read_origin.tolist()}
 
 
-def plan_tiles(files: list[CatalogFile], tile_size: float, buffer: float) -> TilePlan:
+def tile_lookup(grid: CoreGrid, keys: np.ndarray, ids: np.ndarray, col, row) -> np.ndarray:
+    """Tile index of each (col, row) among the sorted cell ``keys`` (-1 outside the grid or
+    where the cell has no tile)."""
+    col, row = np.asarray(col, np.int64), np.asarray(row, np.int64)
+    out = np.full(col.shape, -1, np.int64)
+    inside = (col >= 0) & (col < grid.cols) & (row >= 0) & (row < grid.rows)
+    if len(keys) and inside.any():
+        key = grid.key(col[inside], row[inside])
+        j = np.minimum(np.searchsorted(keys, key), len(keys) - 1)
+        out[inside] = np.where(keys[j] == key, ids[j], -1)
+    return out
+
+
+def _header_cells(grid: CoreGrid, f: CatalogFile) -> np.ndarray:
+    """Keys of the cells a file's header box meets (clamped to the grid)."""
+    c0, c1 = (int(np.clip(v, 0, grid.cols - 1)) for v in grid.cells([f.bounds[0], f.bounds[2]], [0, 0])[0])
+    r0, r1 = (int(np.clip(v, 0, grid.rows - 1)) for v in grid.cells([0, 0], [f.bounds[1], f.bounds[3]])[1])
+    count = (c1 - c0 + 1) * (r1 - r0 + 1)
+    if count > MAX_HEADER_CELLS:
+        raise ValueError(f"{f.path}: its header box {f.bounds[0]:.0f}, {f.bounds[1]:.0f} .. {f.bounds[2]:.0f}, "
+                         f"{f.bounds[3]:.0f} spans {count:,} tiles of {grid.sx:g} m; use a larger --tile-size")
+    cc, rr = np.meshgrid(np.arange(c0, c1 + 1), np.arange(r0, r1 + 1))
+    return grid.key(cc.ravel(), rr.ravel())
+
+
+def plan_tiles(files: list[CatalogFile], tile_size: float, buffer: float, scan=None) -> TilePlan:
     """Core tiles of ``tile_size`` on a grid anchored at multiples of the tile size, each read with
     ``buffer`` on every side. ``tile_size`` = inf (or <= 0) gives one core over the whole catalog
-    and no buffer: the untiled run, through the same code path."""
+    and no buffer: the untiled run, through the same code path.
+    A tile exists where a file's header box meets its core; a file whose box meets more than
+    SCAN_CELLS cores is scanned instead when ``scan`` is given (``scan(file, grid)`` -> keys of the
+    cells its points occupy): stray points far off stretch a header box over thousands of empty
+    tiles. Nothing is allocated per grid cell."""
     xmin = min(f.bounds[0] for f in files)
     ymin = min(f.bounds[1] for f in files)
     xmax = max(f.bounds[2] for f in files)
     ymax = max(f.bounds[3] for f in files)
+    if not all(math.isfinite(v) for v in (xmin, ymin, xmax, ymax)):
+        raise ValueError("the catalog's header bounds are not finite; fix the headers (e.g. pdal translate)")
     read_origin = np.array([math.floor(xmin), math.floor(ymin), 0.0])
     if tile_size is None or not np.isfinite(tile_size) or tile_size <= 0:
         tile_size, buffer = math.inf, 0.0
         # header max is inclusive; +1 m keeps the last points inside the half-open core
-        x_edges = np.array([math.floor(xmin), math.floor(xmax) + 1.0])
-        y_edges = np.array([math.floor(ymin), math.floor(ymax) + 1.0])
+        gx, gy = float(math.floor(xmin)), float(math.floor(ymin))
+        grid = CoreGrid(gx, gy, float(math.floor(xmax) + 1.0) - gx, float(math.floor(ymax) + 1.0) - gy, 1, 1)
     else:
         tile_size = float(tile_size)
         x0 = math.floor(xmin / tile_size) * tile_size
         y0 = math.floor(ymin / tile_size) * tile_size
         cols = int(math.floor((xmax - x0) / tile_size)) + 1
         rows = int(math.floor((ymax - y0) / tile_size)) + 1
-        x_edges = x0 + tile_size * np.arange(cols + 1, dtype=np.float64)
-        y_edges = y0 + tile_size * np.arange(rows + 1, dtype=np.float64)
+        grid = CoreGrid(float(x0), float(y0), tile_size, tile_size, cols, rows)
     if buffer < 0:
         raise ValueError(f"tiling buffer must be >= 0 m, got {buffer}")
-    cols, rows = len(x_edges) - 1, len(y_edges) - 1
-    cell_x = lambda v: int(np.clip(np.searchsorted(x_edges, v, side="right") - 1, 0, cols - 1))  # noqa: E731
-    cell_y = lambda v: int(np.clip(np.searchsorted(y_edges, v, side="right") - 1, 0, rows - 1))  # noqa: E731
-    used = np.zeros((rows, cols), bool)
+    used = []
     for f in files:
-        if f.count:
-            used[cell_y(f.bounds[1]):cell_y(f.bounds[3]) + 1, cell_x(f.bounds[0]):cell_x(f.bounds[2]) + 1] = True
-    tile_of_cell = np.full((rows, cols), -1, np.int32)
-    cells = [(r, c) for r in range(rows) for c in range(cols) if used[r, c]]
-    for i, (r, c) in enumerate(cells):
-        tile_of_cell[r, c] = i
+        if not f.count:
+            continue
+        if scan is not None and np.isfinite(tile_size) and _box_cells(grid, f) > SCAN_CELLS:
+            used.append(np.asarray(scan(f, grid), np.int64))
+        else:
+            used.append(_header_cells(grid, f))
+    keys = np.unique(np.concatenate(used)) if used else np.zeros(0, np.int64)
+    ids = np.arange(len(keys), dtype=np.int64)
     tiles = []
-    for i, (r, c) in enumerate(cells):
-        core = (float(x_edges[c]), float(y_edges[r]), float(x_edges[c + 1]), float(y_edges[r + 1]))
+    for i, key in enumerate(keys.tolist()):
+        r, c = divmod(key, grid.cols)
+        core = (float(grid.x_edge(c)), float(grid.y_edge(r)), float(grid.x_edge(c + 1)), float(grid.y_edge(r + 1)))
         window = (core[0] - buffer, core[1] - buffer, core[2] + buffer, core[3] + buffer)
         meets = [k for k, f in enumerate(files) if f.count and f.bounds[2] >= window[0]
                  and f.bounds[0] < window[2] and f.bounds[3] >= window[1] and f.bounds[1] < window[3]]
-        c_lo = max(0, int(np.searchsorted(x_edges, window[0], side="right")) - 1)
-        c_hi = min(cols - 1, int(np.searchsorted(x_edges, window[2], side="left")) - 1)
-        r_lo = max(0, int(np.searchsorted(y_edges, window[1], side="right")) - 1)
-        r_hi = min(rows - 1, int(np.searchsorted(y_edges, window[3], side="left")) - 1)
-        near = tuple(int(tile_of_cell[rr, cc]) for rr in range(r_lo, r_hi + 1) for cc in range(c_lo, c_hi + 1)
-                     if tile_of_cell[rr, cc] >= 0 and (rr, cc) != (r, c))
+        lo_c, lo_r = grid.cells([window[0]], [window[1]])
+        hi_c, hi_r = grid.cells([np.nextafter(window[2], -np.inf)], [np.nextafter(window[3], -np.inf)])
+        found = _tiles_in(grid, keys, ids, (max(int(lo_c[0]), 0), min(int(hi_c[0]), grid.cols - 1)),
+                          (max(int(lo_r[0]), 0), min(int(hi_r[0]), grid.rows - 1)))
+        near = tuple(int(t) for t in found if t != i)
         tiles.append(Tile(i, c, r, core, window, tuple(meets), near))
-    return TilePlan(x_edges, y_edges, float(tile_size), float(buffer), read_origin, tiles, tile_of_cell)
+    return TilePlan(grid, float(tile_size), float(buffer), read_origin, tiles, keys, ids)
+
+
+def _tiles_in(grid: CoreGrid, keys: np.ndarray, ids: np.ndarray, cols: tuple, rows: tuple) -> np.ndarray:
+    """Ascending tile indices whose cells lie in the column and row ranges (inclusive): by looking
+    up the range's cells when they are few, else by filtering the tiles (a buffer far larger than
+    the tiles must not enumerate the cells it spans)."""
+    if cols[0] > cols[1] or rows[0] > rows[1]:
+        return np.zeros(0, np.int64)
+    if (cols[1] - cols[0] + 1) * (rows[1] - rows[0] + 1) <= len(keys):
+        cc, rr = np.meshgrid(np.arange(cols[0], cols[1] + 1), np.arange(rows[0], rows[1] + 1))
+        found = tile_lookup(grid, keys, ids, cc.ravel(), rr.ravel())
+        return np.sort(found[found >= 0])
+    r, c = np.divmod(keys, grid.cols)
+    return np.sort(ids[(c >= cols[0]) & (c <= cols[1]) & (r >= rows[0]) & (r <= rows[1])])
+
+
+MIN_POINTS_PER_TILE = 1000      # a tile size giving (many) fewer points per tile is refused
+
+
+def _box_cells(grid: CoreGrid, f: CatalogFile) -> int:
+    cols, rows = grid.cells([f.bounds[0], f.bounds[2]], [f.bounds[1], f.bounds[3]])
+    cols, rows = np.clip(cols, 0, grid.cols - 1), np.clip(rows, 0, grid.rows - 1)
+    return int((cols[1] - cols[0] + 1) * (rows[1] - rows[0] + 1))
+
+
+def scan_cells(f: CatalogFile, grid: CoreGrid) -> np.ndarray:
+    """Keys of the core cells the points of a file occupy (one streaming pass over the file)."""
+    from roadx_ti import io
+
+    found = []
+    for x, y in io.iter_xy(f.path):
+        col, row = grid.cells(x, y)
+        col, row = np.clip(col, 0, grid.cols - 1), np.clip(row, 0, grid.rows - 1)
+        found.append(np.unique(grid.key(col, row)))
+    return np.unique(np.concatenate(found)) if found else np.zeros(0, np.int64)
 
 
 # --------------------------------------------------------------------------------- one tile
@@ -238,9 +395,8 @@ class TileJob:
     """Everything a worker needs (picklable; files are read by the worker from their paths)."""
     tile: Tile
     paths: dict            # catalog index -> path, for the tile's files
-    plan_x_edges: np.ndarray
-    plan_y_edges: np.ndarray
-    tile_of_cell: np.ndarray
+    grid: CoreGrid         # the plan's core cells
+    neighbour_cells: dict  # neighbour tile index -> (col, row) of its core
     windows: dict          # neighbour tile index -> its window
     read_origin: np.ndarray
     stage_specs: list
@@ -248,6 +404,7 @@ class TileJob:
     threads: int | None
     seed: int
     survey_z_min: float = math.inf   # world: the lowest header z of the catalog (cloth start)
+    survey_points: int = 0           # points of the catalog (a tile of a stray point sees it isolated)
 
 
 @dataclass
@@ -356,12 +513,13 @@ def run_tile(job: TileJob) -> TileResult:
     if math.isfinite(job.survey_z_min):
         # the cloth of every tile starts where the whole survey's would (stages/cloth.py)
         ctx.facts[SURVEY_Z_MIN] = job.survey_z_min - float(job.read_origin[2])
+    ctx.facts[SURVEY_POINTS] = job.survey_points
     labels = pipelines.run(cloud, pipelines.build_stages(job.stage_specs), ctx=ctx)
     result.pipeline_seconds = time.perf_counter() - t0
     result.stages = [{k: r[k] for k in ("stage", "points_in", "points_out", "seconds")} for r in labels.stages]
     n = cloud.n
     del cloud
-    col, row = cells(job.plan_x_edges, job.plan_y_edges, x, y)
+    col, row = job.grid.cells(x, y)
     core = (col == tile.col) & (row == tile.row)
     sizes = np.cumsum([0] + counts)
     for k, lo, hi in zip(owners, sizes[:-1], sizes[1:]):
@@ -375,12 +533,9 @@ def run_tile(job: TileJob) -> TileResult:
     if result.segments:
         # points of the buffer that are a neighbour's core points, and my core points in its
         # window: the neighbour holds the same two sets, in the same order, from its side
-        rows_, cols_ = job.tile_of_cell.shape
-        valid = (col >= 0) & (col < cols_) & (row >= 0) & (row < rows_)
-        owner_tile = np.full(n, -1, np.int64)
-        owner_tile[valid] = job.tile_of_cell[row[valid], col[valid]]
         for u in tile.neighbours:
-            result.buffer_in[u] = seg[owner_tile == u]
+            u_col, u_row = job.neighbour_cells[u]
+            result.buffer_in[u] = seg[(col == u_col) & (row == u_row)]
             result.core_in[u] = seg[core & _inside(x, y, job.windows[u])]
     result.seconds = time.perf_counter() - t_start
     return result
@@ -391,11 +546,11 @@ def run_tile(job: TileJob) -> TileResult:
 def make_jobs(plan: TilePlan, files: list[CatalogFile], stage_specs, *, backend: str,
               threads: int | None, seed: int) -> list[TileJob]:
     survey_z_min = min((f.z_range[0] for f in files if f.count), default=math.inf)
-    return [TileJob(tile=t, paths={k: files[k].path for k in t.files}, plan_x_edges=plan.x_edges,
-                    plan_y_edges=plan.y_edges, tile_of_cell=plan.tile_of_cell,
+    return [TileJob(tile=t, paths={k: os.path.abspath(files[k].path) for k in t.files}, grid=plan.grid,
+                    neighbour_cells={u: (plan.tiles[u].col, plan.tiles[u].row) for u in t.neighbours},
                     windows={u: plan.tiles[u].window for u in t.neighbours}, read_origin=plan.read_origin,
                     stage_specs=list(stage_specs), backend=backend, threads=threads, seed=seed,
-                    survey_z_min=survey_z_min)
+                    survey_z_min=survey_z_min, survey_points=sum(f.count for f in files))
             for t in plan.tiles]
 
 
@@ -438,6 +593,8 @@ def run_on_dask(client, jobs: list[TileJob], on_done, *, in_flight: int) -> None
 
     for _ in range(max(1, in_flight)):
         submit()
+    from concurrent.futures import CancelledError
+
     try:
         for fut in done:
             job = running.pop(fut)
@@ -448,34 +605,137 @@ def run_on_dask(client, jobs: list[TileJob], on_done, *, in_flight: int) -> None
             fut.release()
             on_done(result)
             submit()
+    except (OSError, TimeoutError, CancelledError) as exc:
+        raise ClusterError(f"lost the Dask cluster during the run ({type(exc).__name__}: "
+                           f"{' '.join(str(exc).split())[:200]}); no output was written") from None
     finally:
         if running:
-            client.cancel(list(running))
+            with contextlib.suppress(Exception):
+                client.cancel(list(running))
+
+
+def environment() -> dict:
+    """The versions a worker must share with the client: roadx_ti, Python (major.minor), the Taichi
+    distribution and version, and ENVIRONMENT_PACKAGES. Runs on every worker (Client.run)."""
+    import importlib.metadata as metadata
+
+    import roadx_ti
+    from roadx_ti.kernels import taichi_compat
+
+    env = {"roadx_ti": roadx_ti.__version__, "python": "%d.%d" % sys.version_info[:2],
+           taichi_compat.DISTRIBUTION: ".".join(map(str, taichi_compat.ti.__version__))}
+    for name in ENVIRONMENT_PACKAGES:
+        try:
+            env[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            env[name] = None
+    return env
+
+
+def unreadable(paths) -> list:
+    """[(path, problem)] of the input files this process cannot read (runs on every worker)."""
+    problems = []
+    for p in paths:
+        try:
+            with open(p, "rb") as f:
+                f.read(1)
+        except OSError as exc:
+            problems.append((p, exc.strerror or type(exc).__name__))
+    return problems
+
+
+def _reachable(address: str, timeout: float) -> None:
+    """A plain TCP connection to a tcp:// scheduler address, so that a closed port or an unknown
+    host fails at once instead of after the client's retries."""
+    from urllib.parse import urlsplit
+
+    if not address.startswith("tcp://"):
+        return
+    parts = urlsplit(address)
+    try:
+        port = parts.port
+    except ValueError:
+        raise ClusterError(f"--scheduler {address}: not a tcp://HOST:PORT address") from None
+    if not parts.hostname or port is None:
+        raise ClusterError(f"--scheduler {address}: not a tcp://HOST:PORT address")
+    try:
+        socket.create_connection((parts.hostname, port), timeout=timeout).close()
+    except OSError as exc:
+        why = exc.strerror or type(exc).__name__
+        raise ClusterError(f"cannot reach the Dask scheduler at {address} ({why}); start `dask scheduler` "
+                           "there, or run without --scheduler") from None
 
 
 class _DaskSession:
-    """A client on an existing scheduler, or on a LocalCluster of worker processes we own."""
+    """A client on an existing scheduler, or on a LocalCluster of worker processes we own.
+    Before any tile: the scheduler is reached within CONNECT_TIMEOUT, a worker joins within
+    WORKER_TIMEOUT, every worker runs the client's environment and can read every input."""
 
-    def __init__(self, workers: int | None, scheduler: str | None, log):
+    def __init__(self, workers: int | None, scheduler: str | None, log, inputs=(),
+                 connect_timeout: float = CONNECT_TIMEOUT, worker_timeout: float = WORKER_TIMEOUT):
         from distributed import Client, LocalCluster
 
         self.cluster = None
+        self.client = None
         if scheduler:
-            self.client = Client(scheduler, timeout="30s")
-            self.client.wait_for_workers(1, timeout=120)
+            _reachable(scheduler, connect_timeout)
+            try:
+                self.client = Client(scheduler, timeout=f"{connect_timeout}s")
+            except (OSError, TimeoutError) as exc:
+                raise ClusterError(f"cannot connect to the Dask scheduler at {scheduler} within "
+                                   f"{connect_timeout:g} s ({type(exc).__name__}: {' '.join(str(exc).split())[:200]})"
+                                   ) from None
+            try:
+                self.client.wait_for_workers(1, timeout=worker_timeout)
+            except (OSError, TimeoutError):
+                self.close()
+                raise ClusterError(f"the Dask scheduler at {scheduler} has no worker after {worker_timeout:g} s; "
+                                   f"start one with `dask worker {scheduler}`") from None
             self.kind = "scheduler"
         else:
             self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                         dashboard_address=None, silence_logs=logging.WARNING)
             self.client = Client(self.cluster)
             self.kind = "local-cluster"
+        try:
+            self._check_workers(inputs)
+        except BaseException:
+            self.close()
+            raise
         self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
         log.info("Dask %s at %s with %d worker(s)", self.kind, self.client.scheduler.address, self.workers)
 
+    def _check_workers(self, inputs):
+        mine = environment()
+        theirs = self.client.run(environment, on_error="return")
+        for worker, env in sorted(theirs.items()):
+            if isinstance(env, BaseException):
+                raise ClusterError(f"Dask worker {worker} cannot run roadx_ti ({type(env).__name__}: "
+                                   f"{' '.join(str(env).split())[:200]}); install the client's roadx_ti "
+                                   "environment on every worker")
+            differ = [f"{k} {env.get(k)} (here {v})" for k, v in mine.items() if env.get(k) != v]
+            if differ:
+                raise ClusterError(f"Dask worker {worker} runs {', '.join(differ)}; every worker needs the "
+                                   "client's environment (the same roadx_ti, Python and package versions)")
+        if inputs:
+            problems = self.client.run(unreadable, list(inputs), on_error="return")
+            for worker, found in sorted(problems.items()):
+                if isinstance(found, BaseException):
+                    raise ClusterError(f"Dask worker {worker} cannot check the inputs ({type(found).__name__}: "
+                                       f"{' '.join(str(found).split())[:200]})")
+                if found:
+                    path, why = found[0]
+                    more = f" (and {len(found) - 1} more input(s))" if len(found) > 1 else ""
+                    raise ClusterError(f"Dask worker {worker} cannot read {path} ({why}){more}; every input "
+                                       "must be readable under the same absolute path on every worker")
+
     def close(self):
-        self.client.close()
+        if self.client is not None:
+            with contextlib.suppress(Exception):
+                self.client.close()
         if self.cluster is not None:
-            self.cluster.close()
+            with contextlib.suppress(Exception):
+                self.cluster.close()
 
 
 class _Progress:
@@ -653,6 +913,7 @@ def _write_las_stream(out: Path, file_ids, merge: _Merge, processed_only: bool) 
         finally:
             if writer is not None:
                 writer.close()
+        io_las.check_written(out, tmp)
     return written
 
 
@@ -700,7 +961,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     written to summary_path, default '<output stem>.summary.json' or '<folder>/summary.json')
     holds the plan, per-tile timings and counts. Raises TileError (nothing written) when a tile
     fails after its retries."""
-    from roadx_ti import __version__, io, pipelines, report
+    from roadx_ti import __version__, io, jsonio, pipelines
     from roadx_ti.config import PIPELINE_TARGET
 
     log = log or log_default
@@ -719,7 +980,11 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     auto_buffer, reaches = default_buffer(stage_specs)
     buffer = auto_buffer if buffer is None else float(buffer)
     tile_size = default_tile_size(files) if tile_size is None else float(tile_size)
-    plan = plan_tiles(files, tile_size, buffer)
+    plan = plan_tiles(files, tile_size, buffer, scan=scan_cells)
+    if len(plan.tiles) > max(64, total_points // MIN_POINTS_PER_TILE):
+        raise ValueError(f"--tile-size {tile_size:g} gives {len(plan.tiles):,} tiles for {total_points:,} points, "
+                         f"fewer than {MIN_POINTS_PER_TILE} per tile (each tile reads its files): use a larger "
+                         f"tile size, e.g. {default_tile_size(files):g} m")
 
     inputs = [f.path for f in files]
     if output_mode == "merged":
@@ -757,7 +1022,9 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
             jobs = make_jobs(plan, files, stage_specs, backend=cfg.backend, threads=cfg.threads, seed=cfg.seed)
             run_in_process(jobs, on_done)
         else:
-            session = _DaskSession(workers, scheduler, log)
+            session = _DaskSession(workers, scheduler, log, inputs=[os.path.abspath(f.path) for f in files],
+                                   connect_timeout=cfg.executor.connect_timeout,
+                                   worker_timeout=cfg.executor.worker_timeout)
             executor, n_workers = session.kind, session.workers
             # one Taichi runtime per worker process; CPU unless the config names a backend
             threads = cfg.threads or (max(1, (os.cpu_count() or 1) // int(workers)) if workers else None)
@@ -803,7 +1070,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
         summary["truth_classes"] = cfg.truth_classes
         summary["accuracy"] = scores(truth, np.concatenate(merge.pred))
     summary["summary_path"] = str(summary_path)
-    report.write_json(summary_path, summary)
+    jsonio.write(summary_path, summary)
     log.info("wrote %s (%d points, %d tiles, %s) in %.2f s", ", ".join(summary["outputs"][:3])
              + (" ..." if len(outputs) > 3 else ""), written, len(plan.tiles), executor,
              time.perf_counter() - t_start)
@@ -815,11 +1082,11 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
 DISTANCE_BINS = (0.0, 1.0, 2.0, 5.0, 10.0, 20.0, math.inf)
 
 
-def _border_distance(x_edges, y_edges, x, y) -> np.ndarray:
-    x_edges, y_edges = np.asarray(x_edges, np.float64), np.asarray(y_edges, np.float64)
-    col, row = cells(x_edges, y_edges, x, y)
-    col, row = np.clip(col, 0, len(x_edges) - 2), np.clip(row, 0, len(y_edges) - 2)
-    return np.minimum.reduce([x - x_edges[col], x_edges[col + 1] - x, y - y_edges[row], y_edges[row + 1] - y])
+def _border_distance(grid: CoreGrid, x, y) -> np.ndarray:
+    col, row = grid.cells(x, y)
+    col, row = np.clip(col, 0, grid.cols - 1), np.clip(row, 0, grid.rows - 1)
+    return np.minimum.reduce([x - grid.x_edge(col), grid.x_edge(col + 1) - x,
+                              y - grid.y_edge(row), grid.y_edge(row + 1) - y])
 
 
 def segment_agreement(a: np.ndarray, b: np.ndarray) -> float:
@@ -838,7 +1105,7 @@ def compare_outputs(tiled_summary: dict, tiled_output, reference_output, *, summ
     """Tiled vs reference (untiled) labels of the same points (merged outputs, same order):
     disagreements counted and located by their distance to the nearest core border, and the
     segment partitions compared. Added to the summary JSON as 'comparison' when summary_path is given."""
-    from roadx_ti import io, report
+    from roadx_ti import io, jsonio
 
     a, b = io.read(tiled_output), io.read(reference_output)
     if a.n != b.n:
@@ -849,14 +1116,15 @@ def compare_outputs(tiled_summary: dict, tiled_output, reference_output, *, summ
         raise ValueError("the outputs do not hold the same points in the same order")
     differ = a.classification != b.classification
     tiling = tiled_summary["tiling"]
-    dist = _border_distance(tiling["x_edges"], tiling["y_edges"], xa[differ], ya[differ])
+    grid = CoreGrid(**tiling["grid"])
+    dist = _border_distance(grid, xa[differ], ya[differ])
     hist, _ = np.histogram(dist, bins=DISTANCE_BINS)
     seg_a = np.asarray(a.las["segment_id"], np.int64)
     seg_b = np.asarray(b.las["segment_id"], np.int64)
     crossing, whole = 0, 0
     if (seg_b >= 0).any():
         # reference segments spread over several cores: are they one segment in the tiled run?
-        cell = np.column_stack(cells(tiling["x_edges"], tiling["y_edges"], xb, yb))
+        cell = np.column_stack(grid.cells(xb, yb))
         for s in np.unique(seg_b[seg_b >= 0]):
             sel = seg_b == s
             if len(np.unique(cell[sel], axis=0)) > 1:
@@ -875,5 +1143,5 @@ def compare_outputs(tiled_summary: dict, tiled_output, reference_output, *, summ
     }
     if summary_path is not None:
         summary = dict(tiled_summary) | {"comparison": comparison}
-        report.write_json(summary_path, summary)
+        jsonio.write(summary_path, summary)
     return comparison

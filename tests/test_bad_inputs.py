@@ -11,6 +11,7 @@ once in a few worker threads, and each case is then checked by its own test.
 """
 from __future__ import annotations
 
+import json
 import os
 import struct
 import sys
@@ -25,7 +26,7 @@ import numpy as np
 import pytest
 
 from cli_helpers import (CONFIGS, DEMO_FAST, bumpy_ground, error_line, partial_files, run_cli, sha256,
-                         write_las, write_tiny_config)
+                         synth, write_las, write_tiny_config)
 
 ROAD_CLASSES = {1, 2, 6, 11}
 
@@ -41,6 +42,10 @@ class Case:
     check: Callable | None = None   # graceful results: check(case) on the written output
     hashes: dict = field(default_factory=dict)
     seconds: float = 0.0            # wall time of the CLI run (for tuning the suite's speed)
+    proc: object = None             # the finished CLI run (for checks of stdout / stderr)
+    reference: list | None = None   # arguments of a second CLI run the check compares with (run
+    reference_proc: object = None   # alongside the cases), and its finished process
+    max_seconds: float | None = None   # the run must finish within this (e.g. stray points far off)
 
 
 def _run(config, folder: Path, *inputs, output=None, extra=(), code=1, **kw) -> Case:
@@ -351,6 +356,224 @@ def case_backend_not_on_this_machine(d):
     return _tiny(d, src, extra=["--backend", name], code=2, message=f"backend '{name}' is not available")
 
 
+# ------------------------------------------------------------- issue 18: real survey files
+# A stray point kilometres away sized the cloth, the grids and the tile plan by its extent (the
+# roof pipeline ran > 3 min on 20,000 points + 2 strays). Now such a run takes seconds, every other
+# point gets the label it gets without the strays, and the strays are class 1.
+STRAY_OFFSETS = np.array([[20_000.0, 0.0, 0.0], [0.0, -20_000.0, -300.0]])
+
+
+def _stray_case(d, xyz, config, extra=(), rgb=None, classes=ROAD_CLASSES):
+    """``xyz`` with two strays 20 km away inserted among them; the check runs the same config on
+    the points without the strays and compares labels."""
+    at = [len(xyz) // 3, 2 * len(xyz) // 3]
+    strays = xyz[at[0]] + STRAY_OFFSETS
+    offset = np.floor(xyz.min(axis=0))
+    plain = write_las(d / "in" / "plain.laz", xyz, rgb=rgb, offset=offset)
+    src = write_las(d / "in" / "strays.laz", np.insert(xyz, at, strays, axis=0), offset=offset,
+                    rgb=None if rgb is None else np.insert(rgb, at, rgb[at], axis=0))
+    others = np.ones(len(xyz) + 2, bool)
+    others[np.array(at) + np.arange(2)] = False
+
+    reference = d / "reference" / "plain.laz"
+
+    def check(c):
+        out = _las_result(c, src, classes)
+        assert c.reference_proc.returncode == 0, c.reference_proc.stderr
+        got, want = np.asarray(out.classification), np.asarray(laspy.read(reference).classification)
+        assert (got[others] == want).mean() >= 0.999
+        assert (got[~others] == 1).all()
+    case = _run(config, d, src, extra=extra, code=0, check=check, max_seconds=90.0)
+    case.reference = ["run", config, "--backend", "cpu", "--quiet", "--input", plain, "--output", reference, *extra]
+    return case
+
+
+def case_strays_roof_pipeline(d):
+    """The issue's case: a roof scene of 20,000 points and two strays 20 km away (one also 300 m
+    down), configs/roof_als.yaml: a valid output in seconds, the others labelled as without them."""
+    cloud = _synthetic(d, "als-roof", 20_000)
+    return _stray_case(d, cloud[0], CONFIGS / "roof_als.yaml", rgb=cloud[1], classes={1, 2, 6})
+
+
+def case_strays_road_pipeline(d):
+    """The road pipeline (downsampling 0.5, SOR, RANSAC, grid, cloth, growing) on a UAV scene of
+    10,000 points with two strays: SOR drops them, the others' labels do not change."""
+    cloud = _synthetic(d, "uav-road", 10_000)
+    return _stray_case(d, cloud[0], CONFIGS / "demo.yaml", extra=DEMO_FAST, rgb=cloud[1])
+
+
+def case_strays_ground_pipeline(d):
+    """20,000 ground points and two strays through the cloth alone (configs/ground.yaml): the
+    strays get no cloth (class 1), the ground stays ground."""
+    return _stray_case(d, bumpy_ground(20_000, side=40.0), CONFIGS / "ground.yaml", classes={1, 2})
+
+
+def case_strays_grid_stages(d):
+    """The tiny config (grid_slope over 0.5 m cells) with two strays: a sparse grid instead of
+    80000 x 80000 cells."""
+    return _stray_case(d, bumpy_ground(5000), write_tiny_config(d))
+
+
+def case_strays_tiled(d):
+    """A tiled run (--tile-size 20) of a file whose header box the strays stretch to 20 km: only the
+    occupied tiles run (not 10^6 of them), each stray alone in its tile is class 1."""
+    return _stray_case(d, bumpy_ground(4000), CONFIGS / "ground.yaml", extra=["--tile-size", "20"],
+                       classes={1, 2})
+
+
+def _synthetic(d, kind, n):
+    path = synth(d / "in" / f"{kind}.laz", str(n), kind=kind)
+    las = laspy.read(path)
+    path.unlink()
+    xyz = np.column_stack([las.x, las.y, las.z])
+    return xyz, np.column_stack([las.red, las.green, las.blue]).astype(np.uint16)
+
+
+def case_cloth_larger_than_its_points(d):
+    """4,000 points 10 m apart along a 28 km diagonal: one part, whose cloth would hold 7.8 * 10^8
+    particles at 1 m. Exit 1 before allocating, one line naming the extent and the option."""
+    t = np.sort(np.random.default_rng(0).uniform(0, 28_000, 4000))
+    xyz = np.column_stack([t + 500_000.0, t + 4_500_000.0, np.full(4000, 100.0)])
+    src = write_las(d / "in" / "diagonal.laz", xyz)
+    return _run(CONFIGS / "ground.yaml", d, src, message="raise stages.cloth_ground.cloth_resolution")
+
+
+def case_memory_estimate_over_the_limit(d):
+    """--memory-limit 280M for 200,000 points through the ground pipeline (estimate 300 MB with its
+    margin): exit 1 before reading the points, one line suggesting a tile size."""
+    src = write_las(d / "in" / "big.laz", bumpy_ground(200_000, side=150.0))
+    return _run(CONFIGS / "ground.yaml", d, src, extra=["--memory-limit", "280M"],
+                message="run in tiles (--tile-size")
+
+
+def case_memory_estimate_runs_in_tiles(d):
+    """The same with tiling.auto: a warning and a tiled run, every point written."""
+    src = write_las(d / "in" / "big.laz", bumpy_ground(200_000, side=150.0))
+
+    def check(c):
+        _las_result(c, src, {1, 2})
+        summary = json.loads(c.output.with_suffix(".summary.json").read_text())
+        assert summary["tiling"]["tiles"] > 1
+    return _run(CONFIGS / "ground.yaml", d, src, extra=["--memory-limit", "280M", "--set", "tiling.auto=true"],
+                code=0, warning="running in tiles of", check=check)
+
+
+def case_unreachable_scheduler(d):
+    """--scheduler tcp://127.0.0.1:9 (nothing listens): exit 1 within seconds, one line."""
+    src = _ground_laz(d)
+    return _run(CONFIGS / "ground.yaml", d, src, extra=["--scheduler", "tcp://127.0.0.1:9"],
+                message="cannot reach the Dask scheduler at tcp://127.0.0.1:9", max_seconds=30.0)
+
+
+def case_eval_truth_class_absent(d):
+    """eval against a truth class the file does not hold: exit 0 and strict JSON, null where a
+    measure is undefined (it printed NaN)."""
+    src = write_las(d / "in" / "ground.las", bumpy_ground(300), classification=np.full(300, 2))
+
+    def check(c):
+        result = json.loads(c.proc.stdout, parse_constant=lambda v: pytest.fail(f"{v} is not JSON"))
+        assert result["type1"] is None and result["kappa"] is None and result["truth_positive"] == 0
+    return Case(args=["eval", "--pred", src, "--truth", src, "--truth-classes", "11"], code=0, output=src,
+                check=check)
+
+
+def _tiles_folder(d, names=("a.laz", "b.laz")):
+    folder = d / "in" / "tiles"
+    folder.mkdir()
+    for k, name in enumerate(names):
+        write_las(folder / name, bumpy_ground(1500, seed=k) + [25.0 * k, 0.0, 0.0])
+    return folder
+
+
+def case_catalog_folder_with_readme(d):
+    """A folder of LAS tiles with a readme.txt and a notes.pdf beside them (it failed as 'text
+    header names no x y z columns'): the LAS files are the catalog, the others skipped in one
+    warning line."""
+    folder = _tiles_folder(d)
+    (folder / "readme.txt").write_text("Survey of 2026, EPSG:2154\n")
+    (folder / "notes.pdf").write_bytes(b"%PDF-1.4 not points")
+
+    def check(c):
+        assert len(laspy.read(c.output).points) == 3000
+    return _run(CONFIGS / "ground.yaml", d, folder, code=0, warning="skipped 2 other file(s): notes.pdf, readme.txt",
+                check=check)
+
+
+def case_catalog_folder_with_a_killed_runs_partial_file(d):
+    """A catalog folder that holds a hidden partial LAZ a killed run left there: not an input."""
+    folder = _tiles_folder(d)
+    (folder / ".a.p99999-host-x1y2z3.partial.laz").write_bytes(b"LASF" + bytes(100))
+
+    def check(c):
+        assert len(laspy.read(c.output).points) == 3000
+    return _run(CONFIGS / "ground.yaml", d, folder, code=0, check=check)
+
+
+def case_catalog_folder_of_text_tiles_with_readme(d):
+    """A folder without LAS/LAZ: its point-cloud format in the majority (.xyz) forms the catalog,
+    the readme.txt beside the tiles is skipped with a warning."""
+    folder = d / "in" / "xyz"
+    folder.mkdir()
+    for k in range(2):
+        np.savetxt(folder / f"t{k}.xyz", bumpy_ground(800, seed=k) + [25.0 * k, 0, 0], fmt="%.3f")
+    (folder / "readme.txt").write_text("columns: x y z\n")
+
+    def check(c):
+        assert len(laspy.read(c.output).points) == 1600
+    return _run(CONFIGS / "ground.yaml", d, folder, code=0, warning="skipped 1 other file(s): readme.txt",
+                check=check)
+
+
+def case_stale_partial_file_of_a_killed_run(d):
+    """The output folder holds the temporary file of a run that was killed (its pid gone): the
+    run removes it (the catalogue then finds no partial file), and says so."""
+    import subprocess
+    from roadx_ti.io.atomic import _host
+    src = _ground_laz(d)
+    done = subprocess.Popen([sys.executable, "-c", "pass"])
+    done.wait()
+    (d / "out").mkdir()
+    (d / "out" / f".result.p{done.pid}-{_host()}-dead01.partial.laz").write_bytes(b"half a file")
+    return _tiny(d, src, code=0, extra=["--set", "output.report_png=false"], check=lambda c: _las_result(c, src))
+
+
+def _header_field(d, name, offset, fmt, value, n=500):
+    src = write_las(d / "in" / name, bumpy_ground(n))
+    data = bytearray(src.read_bytes())
+    struct.pack_into(fmt, data, offset, value)
+    src.write_bytes(bytes(data))
+    return src
+
+
+def case_scale_zero(d):
+    """A header whose x scale is 0: exit 1, 'invalid header' (every x would be the offset)."""
+    return _tiny(d, _header_field(d, "scale0.las", 131, "<d", 0.0), message="invalid header")
+
+
+def case_offset_at_the_float64_limit(d):
+    """An x offset of 1.7976931348623157e308 (every x collapses onto it; it ran and wrote
+    meaningless labels): exit 1, the header named as wrong."""
+    return _tiny(d, _header_field(d, "offset.las", 155, "<d", 1.7976931348623157e308),
+                 message="x coordinates reach 1.8e+308 m, beyond what float64 holds")
+
+
+def case_scale_at_the_float64_limit(d):
+    """An x scale of 1e308: x overflows to inf; exit 1 naming the origin that is not finite."""
+    return _tiny(d, _header_field(d, "scale.las", 131, "<d", 1e308), message="is not finite")
+
+
+def case_vlr_count_beyond_the_header(d):
+    """A header claiming 2^31 - 1 VLRs (laspy read VLRs until the machine ran out of memory):
+    exit 1 from the header alone."""
+    return _tiny(d, _header_field(d, "vlrs.las", 100, "<I", 2**31 - 1), message="VLRs cannot fit")
+
+
+def case_point_count_beyond_the_data(d):
+    """A LAS 1.4 header claiming ten times the points it holds: exit 1, 'truncated', from the
+    header (no allocation for the claimed points)."""
+    return _tiny(d, _header_field(d, "count.las", 247, "<Q", 5000), message="the header says 5000 points")
+
+
 CASES = {name[len("case_"):]: fn for name, fn in sorted(globals().items()) if name.startswith("case_")}
 
 
@@ -375,14 +598,20 @@ def catalogue(request, tmp_path_factory):
         case.seconds = time.perf_counter() - t0
         return proc
 
+    def reference_run(case):
+        case.reference_proc = run_cli(*case.reference)
+
     workers = min(4, max(2, os.cpu_count() or 2))
     with ThreadPoolExecutor(workers) as pool:
+        references = [pool.submit(reference_run, c) for c in cases.values() if c.reference]
         procs = dict(zip(cases, pool.map(timed_run, cases.values())))
+        for done in references:
+            done.result()
     return {name: (cases[name], procs[name]) for name in cases}
 
 
 def test_catalogue_size(catalogue):
-    assert len(CASES) >= 20
+    assert len(CASES) > 40
     slowest = sorted(((c.seconds, name) for name, (c, _) in catalogue.items()), reverse=True)[:8]
     print("slowest catalogue runs:", ", ".join(f"{name} {s:.1f} s" for s, name in slowest))
 
@@ -390,7 +619,10 @@ def test_catalogue_size(catalogue):
 @pytest.mark.parametrize("name", list(CASES))
 def test_bad_input(name, catalogue):
     case, proc = catalogue[name]
+    case.proc = proc
     assert "Traceback" not in proc.stderr, proc.stderr
+    if case.max_seconds is not None:
+        assert case.seconds < case.max_seconds, f"{case.seconds:.1f} s"
     assert proc.returncode == case.code, f"exit {proc.returncode}, expected {case.code}: {proc.stderr}"
     if case.code != 0:
         line = error_line(proc, case.code)

@@ -28,7 +28,11 @@ def _run(tmp_path, *argv):
     code = bench.main(_args(*argv, "--out", str(out), "--results", str(tmp_path / "RESULTS.md")))
     assert code == 0
     (json_path,) = out.glob("bench-*.json")
-    return json.loads(json_path.read_text())
+    return json.loads(json_path.read_text(), parse_constant=_refuse)   # strict JSON (issue 18)
+
+
+def _refuse(constant):
+    raise ValueError(f"the bench JSON holds {constant}, which is not JSON")
 
 
 def test_quick_run_rows_and_results_page(tmp_path):

@@ -5,7 +5,8 @@ The CLI writes through io.atomic_output: a hidden temporary file '.NAME.XXXX.par
 output folder, fsynced, then renamed over the output. The test starts the real CLI on a cloud
 large enough that writing the LAZ takes a while, waits until the temporary file has data in it,
 and kills the process. A killed process cannot delete its temporary file: the hidden '.partial'
-file is what may be left, and nothing else.
+file is what may be left, and nothing else; the next run of the same output removes it, and never
+a live run's temporary file or anything else (issue 18).
 """
 from __future__ import annotations
 
@@ -18,7 +19,11 @@ import laspy
 import numpy as np
 import pytest
 
-from cli_helpers import bumpy_ground, run_cli, sha256, start_cli, write_las, write_tiny_config
+import socket
+import subprocess
+import sys
+
+from cli_helpers import bumpy_ground, cli_env, run_cli, sha256, start_cli, write_las, write_tiny_config
 
 POINTS = 1_500_000
 
@@ -34,9 +39,9 @@ def _temporaries(folder: Path, out: Path) -> list[Path]:
     return [p for p in folder.iterdir() if p.name.startswith(f".{out.stem}.") and p.name.endswith(".partial.laz")]
 
 
-def _kill_while_writing(config, src, out, timeout=300.0):
-    """Start a run, SIGKILL it as soon as its temporary output holds data; return the temporary
-    file seen (None when the run ended first) and the killed process."""
+def _kill_while_writing(config, src, out, timeout=300.0, sig=signal.SIGKILL):
+    """Start a run, send it ``sig`` as soon as its temporary output holds data; return the
+    temporary file seen and the killed process."""
     proc = start_cli("run", config, "--backend", "cpu", "--quiet", "--input", src, "--output", out)
     seen = None
     deadline = time.monotonic() + timeout
@@ -45,16 +50,17 @@ def _kill_while_writing(config, src, out, timeout=300.0):
             if out.parent.is_dir():
                 busy = [p for p in _temporaries(out.parent, out) if p.exists() and p.stat().st_size > 0]
                 if busy:
-                    os.kill(proc.pid, signal.SIGKILL)
+                    os.kill(proc.pid, sig)
                     seen = busy[0]
                     break
             time.sleep(0.002)
     finally:
         if proc.poll() is None and seen is None:
             os.kill(proc.pid, signal.SIGKILL)
-        proc.communicate()
+        proc.stderr_text = proc.communicate()[1]
     assert seen is not None, f"the run ended (exit {proc.returncode}) before it could be killed mid-write"
-    assert proc.returncode == -signal.SIGKILL
+    if sig == signal.SIGKILL:
+        assert proc.returncode == -signal.SIGKILL
     return seen, proc
 
 
@@ -69,17 +75,20 @@ def test_killed_first_run_leaves_no_output(big_input, tmp_path):
     folder, src, config = big_input
     digest = sha256(src)
     out = tmp_path / "result.laz"
-    seen, _ = _kill_while_writing(config, src, out)
+    seen, killed = _kill_while_writing(config, src, out)
     assert not out.exists()
     assert not out.with_suffix(".summary.json").exists()
     _leftovers_are_only_temporaries(tmp_path, out, allowed=set())
     assert sha256(src) == digest
-    # the next run is not disturbed by the dead run's temporary file and writes a complete output
+    assert seen.exists() and f"p{killed.pid}-" in seen.name          # the dead run's file, named by its pid
+    # the next run is not disturbed by the dead run's temporary file, writes a complete output and
+    # removes the temporary file the killed run left
     proc = run_cli("run", config, "--backend", "cpu", "--quiet", "--input", src, "--output", out)
     assert proc.returncode == 0, proc.stderr
     result = laspy.read(out)
     assert len(result.points) == POINTS
     np.testing.assert_array_equal(np.asarray(result.X), np.asarray(laspy.read(src).X))
+    assert not seen.exists() and _temporaries(tmp_path, out) == []
 
 
 def test_killed_run_keeps_the_previous_output(big_input, tmp_path):
@@ -92,3 +101,71 @@ def test_killed_run_keeps_the_previous_output(big_input, tmp_path):
     assert sha256(out) == before        # the complete previous output, untouched
     assert len(laspy.read(out).points) == 1000
     _leftovers_are_only_temporaries(tmp_path, out, allowed={out.name})
+
+
+def test_sigterm_unwinds_and_leaves_no_temporary_file(big_input, tmp_path):
+    from cli_helpers import message_lines
+    folder, src, config = big_input
+    out = tmp_path / "result.laz"
+    seen, proc = _kill_while_writing(config, src, out, sig=signal.SIGTERM)
+    assert proc.returncode == 128 + signal.SIGTERM, proc.stderr_text
+    assert "Traceback" not in proc.stderr_text
+    assert message_lines(proc.stderr_text) == ["roadx_ti: stopped by SIGTERM; no partial output was left"]
+    assert not seen.exists() and not out.exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+HOLDER = """\
+import sys, time
+from pathlib import Path
+from roadx_ti.io.atomic import atomic_output
+with atomic_output(sys.argv[1]) as tmp:
+    Path(tmp).write_bytes(b"live")
+    print(tmp, flush=True)
+    sys.stdin.readline()          # hold the temporary file open until told to finish
+"""
+
+
+def _dead_pid() -> int:
+    done = subprocess.Popen([sys.executable, "-c", "pass"])
+    done.wait()
+    return done.pid
+
+
+def test_clean_up_removes_only_dead_runs_files_of_its_own_output(tmp_path):
+    from roadx_ti.io.atomic import _host
+    src = write_las(tmp_path / "small.las", bumpy_ground(2000))
+    config = write_tiny_config(tmp_path)
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    out = out_dir / "result.laz"
+    holder = subprocess.Popen([sys.executable, "-c", HOLDER, str(out)], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True, env=cli_env())
+    try:
+        live = Path(holder.stdout.readline().strip())          # a concurrent run's live file
+        assert live.exists() and str(holder.pid) in live.name
+        dead, host = _dead_pid(), _host()
+        stale = out_dir / f".result.p{dead}-{host}-abc123.partial.laz"
+        keep = {
+            "other output": out_dir / f".other.p{dead}-{host}-abc123.partial.laz",
+            "other host": out_dir / f".result.p{dead}-{host}x-abc123.partial.laz",
+            "no pid (older format)": out_dir / ".result.k2j4h1.partial.laz",
+            "another suffix": out_dir / f".result.p{dead}-{host}-abc123.partial.las",
+            "a user file": out_dir / "result.partial.laz",
+        }
+        for p in [stale, *keep.values()]:
+            p.write_bytes(b"x")
+        link = out_dir / f".result.p{dead}-{host}-link01.partial.laz"
+        link.symlink_to(src)                                   # never followed nor removed
+        proc = run_cli("run", config, "--backend", "cpu", "--input", src, "--output", out)
+        assert proc.returncode == 0, proc.stderr
+        assert not stale.exists()
+        assert f"removed {stale.name}" in proc.stderr
+        assert live.exists() and live.read_bytes() == b"live"
+        for what, p in keep.items():
+            assert p.exists(), what
+        assert link.is_symlink() and src.exists()
+    finally:
+        holder.communicate("done\n", timeout=60)
+    assert holder.returncode == 0 and not live.exists()          # the holder then renamed its file
+    assert out.read_bytes() == b"live"

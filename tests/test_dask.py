@@ -82,11 +82,35 @@ class DaskProcesses:
         self.procs: dict[str, subprocess.Popen] = {}
         self.logs = []
 
-    def _spawn(self, name, args):
+    def _spawn(self, name, args, wrap=(), env=None):
         log = open(self.folder / f"{name}.log", "w")
         self.logs.append(log)
-        self.procs[name] = subprocess.Popen([str(DASK), *args], stdout=log, stderr=subprocess.STDOUT,
-                                            cwd=self.folder, start_new_session=True)
+        self.procs[name] = subprocess.Popen([*wrap, str(DASK), *args], stdout=log, stderr=subprocess.STDOUT,
+                                            cwd=self.folder, start_new_session=True,
+                                            env=None if env is None else dict(os.environ, **env))
+
+    def _worker_args(self, name):
+        return ["worker", "--scheduler-file", str(self.scheduler_file), "--host", "127.0.0.1",
+                "--nthreads", "1", "--no-nanny", "--no-dashboard", "--name", name,
+                "--death-timeout", "60", "--local-directory", str(self.folder)]
+
+    def add_worker(self, name, extra, wrap=(), env=None):
+        """Start one more worker (``extra`` arguments, e.g. --preload) and wait until it joined."""
+        self._spawn(name, [*self._worker_args(name), *extra], wrap=wrap, env=env)
+        deadline = time.monotonic() + START_TIMEOUT
+        while name not in {w["name"] for w in self.client.scheduler_info()["workers"].values()}:
+            if time.monotonic() > deadline or self.procs[name].poll() is not None:
+                pytest.fail(f"worker {name} did not start: " + (self.folder / f"{name}.log").read_text()[-2000:])
+            time.sleep(0.2)
+
+    def stop_worker(self, name):
+        proc = self.procs.pop(name)
+        proc.terminate()
+        proc.wait(timeout=30)
+        deadline = time.monotonic() + START_TIMEOUT
+        while name in {w["name"] for w in self.client.scheduler_info()["workers"].values()}:
+            assert time.monotonic() < deadline, f"worker {name} did not leave"
+            time.sleep(0.2)
 
     def __enter__(self):
         from distributed import Client
@@ -100,11 +124,10 @@ class DaskProcesses:
                 pytest.fail("dask scheduler did not start: " + (self.folder / "scheduler.log").read_text()[-2000:])
             time.sleep(0.2)
         for i in range(self.n_workers):
-            self._spawn(f"w{i}", ["worker", "--scheduler-file", str(self.scheduler_file), "--host", "127.0.0.1",
-                                  "--nthreads", "1", "--no-nanny", "--no-dashboard", "--name", f"w{i}",
-                                  "--death-timeout", "60", "--local-directory", str(self.folder)])
+            self._spawn(f"w{i}", self._worker_args(f"w{i}"))
         self.client = Client(scheduler_file=str(self.scheduler_file), timeout=30)
-        self.client.wait_for_workers(self.n_workers, timeout=START_TIMEOUT)
+        if self.n_workers:
+            self.client.wait_for_workers(self.n_workers, timeout=START_TIMEOUT)
         self.address = self.client.scheduler.address
         assert self.address.startswith("tcp://127.0.0.1:")
         return self
@@ -178,3 +201,64 @@ def test_killing_a_worker_mid_run_still_gives_the_complete_identical_result(refe
         assert dask_procs.procs[victim].wait(timeout=10) == -signal.SIGKILL
     assert result["executor"] == "scheduler"
     assert_same(labels(out), reference)
+
+
+# ------------------------------------------------------------------- failures in one line (issue 18)
+
+# (an unreachable scheduler: tests/test_bad_inputs.py case_unreachable_scheduler)
+
+
+OTHER_VERSION = """\
+import roadx_ti
+roadx_ti.__version__ = "0.0.0+other"      # a worker installed from another release
+"""
+
+# where a mount namespace cannot be made (no privileges): the worker's Python cannot open the folder
+NO_ACCESS = """\
+import builtins, os
+_hidden = os.environ["ROADX_TEST_HIDDEN"]
+if not getattr(builtins.open, "hides", None):          # dask may run a preload twice
+    _open = builtins.open
+    def _guarded(file, *args, **kwargs):
+        if isinstance(file, (str, os.PathLike)) and os.path.abspath(os.fspath(file)).startswith(_hidden):
+            raise FileNotFoundError(2, "No such file or directory", os.fspath(file))
+        return _open(file, *args, **kwargs)
+    _guarded.hides = _hidden
+    builtins.open = _guarded
+"""
+
+
+def _mount_namespaces() -> bool:
+    try:
+        return subprocess.run(["unshare", "-m", "true"], capture_output=True, timeout=10).returncode == 0
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+
+
+def test_worker_with_another_version_or_without_the_inputs_fails_in_one_line(tmp_path):
+    from cli_helpers import error_line, run_cli, write_las, bumpy_ground
+    data = tmp_path / "data"
+    data.mkdir()
+    src = write_las(data / "in.laz", bumpy_ground(500))
+    (tmp_path / "other_version.py").write_text(OTHER_VERSION)
+    (tmp_path / "no_access.py").write_text(NO_ACCESS)
+    out = tmp_path / "out" / "r.laz"
+
+    def run(address):
+        return run_cli("run", REPO / "configs" / "ground.yaml", "--backend", "cpu", "--quiet", "--input", src,
+                       "--output", out, "--scheduler", address, timeout=RUN_TIMEOUT)
+
+    with DaskProcesses(tmp_path, 0) as dask_procs:
+        dask_procs.add_worker("old", ["--preload", str(tmp_path / "other_version.py")])
+        line = error_line(run(dask_procs.address), 1)
+        assert "runs roadx_ti 0.0.0+other" in line and "every worker needs the client's environment" in line
+        dask_procs.stop_worker("old")
+        if _mount_namespaces():       # the worker sees an empty folder where the data is (a missing mount)
+            dask_procs.add_worker("blind", [], wrap=["unshare", "-m", "sh", "-c",
+                                                     f'mount -t tmpfs none "{data}" && exec "$0" "$@"'])
+        else:
+            dask_procs.add_worker("blind", ["--preload", str(tmp_path / "no_access.py")],
+                                  env={"ROADX_TEST_HIDDEN": str(data)})
+        line = error_line(run(dask_procs.address), 1)
+        assert f"cannot read {src}" in line and "same absolute path on every worker" in line
+    assert not out.exists()

@@ -23,7 +23,7 @@ from . import las as _las
 from . import other as _other
 from .atomic import InputError, atomic_output, check_output_path, fail
 
-__all__ = ["InputError", "read", "write", "info", "read_headers", "check_output_path",
+__all__ = ["InputError", "read", "write", "info", "read_headers", "iter_xy", "check_output_path",
            "atomic_output", "EXTENSIONS"]
 
 EXTENSIONS = {".las": "las", ".laz": "las", ".ply": "ply", ".pcd": "pcd", ".npz": "npz",
@@ -142,6 +142,21 @@ def info(path) -> dict:
         "color_depth": cloud.color_depth if cloud.rgb is not None else None,
         "classes": classes(hist), "class_histogram": hist,
     }
+
+
+def iter_xy(path):
+    """World x, y (float64) of a file's points, chunk by chunk (LAS/LAZ streamed; other formats
+    read whole)."""
+    path = Path(path)
+    kind = _kind(path)
+    _check_input(path)
+    if kind == "las":
+        yield from _las.iter_xy_las(path)
+        return
+    cloud = read(path)
+    if cloud.n:
+        world = cloud.world_xyz()
+        yield world[:, 0], world[:, 1]
 
 
 def read_headers(paths) -> list[tuple[str, tuple[float, float, float, float], int, tuple[float, float]]]:

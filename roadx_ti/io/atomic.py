@@ -1,13 +1,32 @@
 """Safe outputs, shared by every writer: the one-line InputError, the check that an output never
 replaces an input, and atomic replacement (temporary file in the destination folder, fsync, rename),
-so that a crash or an error mid-way never leaves a partial or corrupt output behind."""
+so that a crash or an error mid-way never leaves a partial or corrupt output behind.
+
+Temporary files are named ``.NAME.p<pid>-<host>-<random>.partial.EXT`` and held under an exclusive
+``flock`` while they are written. A process killed with SIGKILL cannot remove its temporary file;
+the next write of the same output removes the stale ones: those of this output name whose writer
+ran on this host, is no longer alive, and whose lock is free (the kernel drops a dead process's
+locks). A live writer's file (its process alive or its lock held), a file written on another host
+and any other file are never touched.
+"""
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
+import re
+import socket
+import stat
 import tempfile
 from pathlib import Path
 from typing import Iterable, Iterator
+
+try:
+    import fcntl
+except ImportError:      # not POSIX: no locks, so no stale-file clean-up either
+    fcntl = None
+
+log = logging.getLogger("roadx_ti")
 
 
 class InputError(ValueError):
@@ -76,19 +95,87 @@ def _umask() -> int:
     return mask
 
 
+def _host() -> str:
+    return re.sub(r"[^A-Za-z0-9]", "_", socket.gethostname())[:32] or "host"
+
+
+def _temporary_pattern(dest: Path) -> re.Pattern:
+    return re.compile(re.escape(f".{dest.stem}.") + r"p(\d+)-([A-Za-z0-9_]+)-[A-Za-z0-9_]+"
+                      + re.escape(f".partial{dest.suffix}") + "$")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True          # someone else's process (or a number no process can have)
+    return True
+
+
+def _lock(fd: int) -> bool:
+    """Take the exclusive lock of an open file without waiting; False when another holds it."""
+    if fcntl is None:
+        return True
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return False
+    return True
+
+
+def remove_stale_temporaries(path) -> list[Path]:
+    """Remove the temporary files of output ``path`` left by dead writers (module docstring);
+    returns the removed paths."""
+    dest = Path(path)
+    if fcntl is None or not dest.parent.is_dir():
+        return []
+    pattern, host, removed = _temporary_pattern(dest), _host(), []
+    try:
+        names = os.listdir(dest.parent)
+    except OSError:
+        return []
+    for name in names:
+        m = pattern.match(name)
+        if not m or m.group(2) != host or _alive(int(m.group(1))):
+            continue
+        candidate = dest.parent / name
+        try:
+            if not stat.S_ISREG(os.lstat(candidate).st_mode):
+                continue                      # never a link, a folder or a device
+            fd = os.open(candidate, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+        except OSError:
+            continue
+        try:
+            if _lock(fd):
+                os.unlink(candidate)
+                removed.append(candidate)
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
+    for p in removed:
+        log.info("removed %s, left by a run that was killed while writing %s", p.name, dest.name)
+    return removed
+
+
 @contextlib.contextmanager
 def atomic_output(path) -> Iterator[Path]:
     """``with atomic_output(p) as tmp: write tmp`` -> ``tmp`` is fsynced and renamed to ``p`` when
     the block succeeds; on any exception it is removed and ``p`` is left as it was. The temporary
     name is hidden, in the destination's folder (same file system, so the rename is atomic), and
-    ends with the destination's suffix so writers that choose a format by extension still work."""
+    ends with the destination's suffix so writers that choose a format by extension still work.
+    Stale temporary files of the same output left by killed runs are removed first."""
     dest = Path(path)
+    remove_stale_temporaries(dest)
     try:
-        fd, name = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.stem}.", suffix=f".partial{dest.suffix}")
+        fd, name = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.stem}.p{os.getpid()}-{_host()}-",
+                                    suffix=f".partial{dest.suffix}")
     except OSError as exc:  # e.g. /proc, a read-only mount: the user's path, not a program error
         raise fail(dest, f"cannot create a file in the output folder {dest.parent} "
                          f"({exc.strerror or type(exc).__name__})") from None
-    os.close(fd)
+    _lock(fd)                # held until the file is renamed or removed: it is live
     tmp = Path(name)
     try:
         yield tmp
@@ -101,4 +188,6 @@ def atomic_output(path) -> Iterator[Path]:
         if isinstance(exc, OSError):  # disk full, I/O error: one line, the output left as it was
             raise fail(dest, f"writing failed ({exc.strerror or exc}); the output was not changed") from exc
         raise
+    finally:
+        os.close(fd)
     _fsync_path(dest.parent, directory=True)

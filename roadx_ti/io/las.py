@@ -37,8 +37,75 @@ NEW_FILE_SCALE = 0.001      # metres: scale of LAS files written from non-LAS cl
 # LAS 1.0-1.3 formats keep the class in 5 bits (0-31); the 1.4 format with the same fields holds 0-255
 WIDE_CLASS_FORMAT = {0: 6, 1: 6, 2: 7, 3: 7, 4: 9, 5: 10}
 EXTRA_DIM_TYPES = {np.dtype(t) for t in ("u1", "i1", "u2", "i2", "u4", "i4", "u8", "i8", "f4", "f8")}
-LAS_ERRORS = (laspy.errors.LaspyException, LazrsError, ValueError, OSError, EOFError, IndexError,
-              KeyError, TypeError)
+# what laspy and lazrs raise on a malformed file: every exception but ours (a corrupt header or
+# chunk reaches struct, numpy and Rust code paths laspy does not wrap)
+LAS_ERRORS = (Exception,)
+
+# sizes of the LAS point formats 0-10 without extra bytes, and of the header per minor version
+POINT_SIZES = {0: 20, 1: 28, 2: 26, 3: 34, 4: 57, 5: 63, 6: 30, 7: 36, 8: 38, 9: 59, 10: 67}
+HEADER_SIZES = {0: 227, 1: 227, 2: 227, 3: 235, 4: 375}
+VLR_HEADER, EVLR_HEADER = 54, 60
+
+
+def check_structure(path) -> None:
+    """Check a LAS/LAZ file's header against the file itself before laspy reads it, so that a
+    lying field fails in one line instead of an allocation or a loop sized by it (a VLR count of
+    2^31 made laspy read VLRs until memory ran out): signature, version, header size, offset to
+    the points, every VLR within the space before the points, point format and record length,
+    the points of an uncompressed file within the file, the EVLRs within the file."""
+    import os
+    import struct
+
+    size = os.path.getsize(path)
+    with open(path, "rb") as f:
+        head = f.read(375)
+        if len(head) < 227:
+            if head[:4] != b"LASF":
+                raise fail(path, "not a LAS/LAZ file (no LASF signature)")
+            raise fail(path, f"truncated LAS/LAZ file: {len(head)} bytes, a LAS header needs 227")
+        if head[:4] != b"LASF":
+            raise fail(path, "not a LAS/LAZ file (no LASF signature)")
+        major, minor = head[24], head[25]
+        if major != 1 or minor not in HEADER_SIZES:
+            raise fail(path, f"LAS version {major}.{minor} is not supported (1.0 to 1.4)")
+        header_size, offset, vlrs = struct.unpack_from("<HII", head, 94)
+        fmt_byte, record = struct.unpack_from("<BH", head, 104)
+        count = struct.unpack_from("<I", head, 107)[0]
+        need = HEADER_SIZES[minor]
+        if len(head) < need:
+            raise fail(path, f"truncated LAS/LAZ file: {len(head)} bytes, a LAS {major}.{minor} header needs {need}")
+        if minor >= 4:
+            evlr_start, evlr_count, count = struct.unpack_from("<QIQ", head, 235)
+        if not need <= header_size <= offset <= size:
+            raise fail(path, f"invalid header: header size {header_size}, offset to the points {offset}, "
+                             f"file size {size} (LAS {major}.{minor} needs {need} <= header size <= offset <= file size)")
+        if vlrs * VLR_HEADER > offset - header_size:
+            raise fail(path, f"invalid header: {vlrs} VLRs cannot fit in the {offset - header_size} bytes "
+                             "before the points")
+        f.seek(header_size)
+        block = f.read(offset - header_size)
+        pos = 0
+        for i in range(vlrs):
+            length = struct.unpack_from("<H", block, pos + 20)[0]
+            pos += VLR_HEADER + length
+            if pos > len(block):
+                raise fail(path, f"invalid VLR {i + 1} of {vlrs}: its {length} bytes run past the start of "
+                                 "the points")
+    point_format = fmt_byte & 0x3F
+    compressed = bool(fmt_byte & 0xC0)
+    if point_format not in POINT_SIZES:
+        raise fail(path, f"invalid header: point format {point_format} is not a LAS point format (0 to 10)")
+    if record < POINT_SIZES[point_format]:
+        raise fail(path, f"invalid header: point records of {record} bytes, point format {point_format} "
+                         f"needs {POINT_SIZES[point_format]}")
+    if count > MAX_POINTS:
+        raise _too_many(path, count)
+    if not compressed and offset + count * record > size:
+        have = (size - offset) // record
+        raise fail(path, f"truncated LAS/LAZ file: the header says {count} points, the file holds {have}")
+    if minor >= 4 and evlr_count and not (offset <= evlr_start and evlr_start + evlr_count * EVLR_HEADER <= size):
+        raise fail(path, f"invalid header: {evlr_count} EVLRs from byte {evlr_start} do not fit in the file "
+                         f"of {size} bytes")
 
 
 def _las_error(path, exc: Exception) -> InputError:
@@ -60,17 +127,41 @@ def _check_header(path, header) -> None:
                          f"{list(header.offsets)}, so all {header.point_count} coordinates are NaN/inf")
 
 
+def _check_magnitude(path, world: np.ndarray, scales) -> None:
+    """Coordinates so large that float64 cannot hold them at the file's scale (an offset near
+    1e308: every point collapses onto one value) are a broken header, not a survey."""
+    if not len(world):
+        return
+    with np.errstate(invalid="ignore"):
+        reach = np.nanmax(np.abs(world), axis=0)
+    limit = np.maximum(np.abs(np.asarray(scales, np.float64)), 1e-3) * 2.0**52
+    bad = np.flatnonzero(np.isfinite(reach) & (reach > limit))
+    if len(bad):
+        a = int(bad[0])
+        raise fail(path, f"{'xyz'[a]} coordinates reach {reach[a]:.3g} m, beyond what float64 holds at the "
+                         f"file's {float(scales[a]):g} m scale; the header's scales or offsets are wrong")
+
+
 def _world_xyz(points) -> np.ndarray:
     """float64 world coordinates of a laspy point record (scaled integers)."""
     return np.column_stack([np.asarray(points.x, dtype=np.float64), np.asarray(points.y, dtype=np.float64),
                             np.asarray(points.z, dtype=np.float64)])
 
 
-def _local_origin(header_mins, header_maxs, scales, world: np.ndarray) -> np.ndarray:
+def _local_origin(header_mins, header_maxs, scales, world: np.ndarray, whole: bool = True) -> np.ndarray:
+    """The floor of the header's minimum corner; of the points' when the header box does not hold
+    them; for a whole file (not a window, whose origin must not depend on the window), of the
+    points' without the isolated ones when there are (roadx_ti.isolation.local_origin)."""
     hmin, hmax = np.asarray(header_mins, np.float64), np.asarray(header_maxs, np.float64)
     if len(world) == 0:
         return np.floor(hmin) if np.all(np.isfinite(hmin)) else np.zeros(3)
     lo, hi = world.min(axis=0), world.max(axis=0)
+    if whole and np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)):
+        from roadx_ti.isolation import SMALL_PART, isolated
+
+        far = isolated(world, SMALL_PART)
+        if far is not None:
+            return np.floor(world[~far].min(axis=0))
     tol = np.abs(np.asarray(scales, np.float64))
     if np.all(np.isfinite(hmin)) and np.all(lo >= hmin - tol) and np.all(hi <= hmax + tol):
         return np.floor(hmin)
@@ -120,10 +211,32 @@ def _read_window(path, reader, bounds) -> laspy.ScaleAwarePointRecord:
     return laspy.ScaleAwarePointRecord(array, header.point_format, header.scales, header.offsets)
 
 
+def _read_all(path, reader) -> laspy.LasData:
+    """Every point of an open file. LAZ is decompressed chunk by chunk, so memory follows the
+    points the file really holds, not the count its header claims."""
+    header = reader.header
+    if not header.are_points_compressed:
+        las = reader.read()
+        got = len(las.points)
+    else:
+        chunks, got = [], 0
+        for chunk in reader.chunk_iterator(CHUNK_POINTS):
+            chunks.append(chunk.array)
+            got += len(chunk)
+        array = np.concatenate(chunks) if chunks else np.zeros(0, dtype=header.point_format.dtype())
+        las = laspy.LasData(copy.deepcopy(header), laspy.ScaleAwarePointRecord(
+            array, header.point_format, header.scales, header.offsets))
+        las.header.point_count = got
+    if got != header.point_count:
+        raise fail(path, f"truncated LAS/LAZ file: {got} of {header.point_count} points could be read")
+    return las
+
+
 def read_las(path, bounds=None, origin=None) -> Cloud:
     """Read a LAS/LAZ file (optionally only the points inside ``bounds`` = (xmin, ymin, xmax, ymax),
     half-open) into a Cloud that keeps the LasData in ``cloud.las``."""
     try:
+        check_structure(path)
         with laspy.open(path) as reader:
             header = reader.header
             _check_header(path, header)
@@ -131,10 +244,7 @@ def read_las(path, bounds=None, origin=None) -> Cloud:
             if bounds is None:
                 if header.point_count > MAX_POINTS:
                     raise _too_many(path, header.point_count)
-                las = reader.read()
-                if len(las.points) != header.point_count:
-                    raise fail(path, f"truncated LAS/LAZ file: {len(las.points)} of "
-                                     f"{header.point_count} points could be read")
+                las = _read_all(path, reader)
             else:
                 points = _read_window(path, reader, bounds)
                 las = laspy.LasData(copy.deepcopy(header), points)
@@ -143,8 +253,9 @@ def read_las(path, bounds=None, origin=None) -> Cloud:
     except LAS_ERRORS as exc:
         raise _las_error(path, exc) from exc
     world = _world_xyz(las.points)
+    _check_magnitude(path, world, las.header.scales)
     if origin is None:
-        origin = _local_origin(hmins, hmaxs, las.header.scales, world)
+        origin = _local_origin(hmins, hmaxs, las.header.scales, world, whole=bounds is None)
     origin = np.asarray(origin, dtype=np.float64).reshape(3)
     rgb, depth = _las_rgb(las)
     return Cloud(xyz=(world - origin).astype(np.float32), origin=origin, rgb=rgb, color_depth=depth,
@@ -266,6 +377,17 @@ def _las_from_record(path, src, n: int, classification, extra_dims, index) -> la
             array.copy(), header.point_format, header.scales, header.offsets)),
             point_format_id=wide, file_version="1.4")
         header, array = upgraded.header, upgraded.points.array
+    version = f"{header.version.major}.{header.version.minor}"
+    fmt_id = header.point_format.id
+    if fmt_id not in laspy.point.dims.VERSION_TO_POINT_FMT.get(version, ()):
+        # laspy reads LAS 1.0 and odd version / format pairs but writes neither
+        target = laspy.point.dims.preferred_file_version_for_point_format(fmt_id)
+        log.warning("%s: LAS %s with point format %d cannot be written; writing LAS %s (the point records "
+                    "are the same)", path, version, fmt_id, target)
+        upgraded = laspy.convert(laspy.LasData(header, laspy.ScaleAwarePointRecord(
+            array.copy(), header.point_format, header.scales, header.offsets)),
+            point_format_id=fmt_id, file_version=target)
+        header, array = upgraded.header, upgraded.points.array
     extra = {name: _extra_dim_values(path, name, per_point(name, v, n, index))
              for name, v in (extra_dims or {}).items()}
     if extra:
@@ -275,6 +397,11 @@ def _las_from_record(path, src, n: int, classification, extra_dims, index) -> la
     if classes is not None:
         record["classification"] = classes   # legacy formats: only the 5 class bits change
     return laspy.LasData(header, record)
+
+
+def fits_new_file(local: np.ndarray) -> bool:
+    """Whether local coordinates (m from the origin) fit a new LAS file's int32 at NEW_FILE_SCALE."""
+    return not local.size or float(np.abs(local).max()) / NEW_FILE_SCALE <= 2**31 - 1.5
 
 
 def _las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> laspy.LasData:
@@ -300,7 +427,7 @@ def _las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> l
             extra[name] = _extra_dim_values(path, name, a)
     local = cloud.xyz.astype(np.float64) if index is None else cloud.xyz[index].astype(np.float64)
     ints = np.round(local / NEW_FILE_SCALE)
-    if ints.size and (np.abs(ints).max() > 2**31 - 1):
+    if not fits_new_file(local):
         raise fail(path, "coordinates span more than +-2147 km from the origin at 1 mm scale; "
                          "split the cloud or move its origin")
     record = _set_extra_dims(path, header, np.zeros(len(local), dtype=header.point_format.dtype()), extra)
@@ -341,6 +468,22 @@ def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subse
     with atomic_output(path) as tmp:
         with open(tmp, "wb") as f:
             las.write(f, do_compress=compress)
+        check_written(path, tmp, cloud.source)
+
+
+def check_written(path, tmp, source="") -> None:
+    """The written temporary file parses as LAS/LAZ (header, VLRs, point format), or the write
+    fails in one line and the output is not replaced: laspy writes some headers it cannot read
+    back (an undeclared extra-bytes field of more than 3 elements, from an input whose extra-bytes
+    VLR does not describe its records)."""
+    try:
+        with laspy.open(tmp) as reader:
+            reader.header.point_format.dtype()
+    except Exception as exc:
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        raise fail(path, f"the point records{f' of {source}' if source else ''} cannot be written back as a "
+                         f"readable LAS/LAZ file ({text}); check its header (point format, record length, "
+                         "extra-bytes VLR), e.g. with pdal info --metadata") from None
 
 
 # ------------------------------------------------------------------------------- header look-ups
@@ -348,10 +491,29 @@ def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subse
 def read_header_las(path):
     """(point count, (xmin, ymin, xmax, ymax), (zmin, zmax)) from the header alone."""
     try:
+        check_structure(path)
         with laspy.open(path) as reader:
             h = reader.header
             return (int(h.point_count), (float(h.mins[0]), float(h.mins[1]), float(h.maxs[0]), float(h.maxs[1])),
                     (float(h.mins[2]), float(h.maxs[2])))
+    except LAS_ERRORS as exc:
+        raise _las_error(path, exc) from exc
+
+
+def iter_xy_las(path):
+    """World x, y (float64) chunk by chunk; a truncated file is an InputError."""
+    try:
+        check_structure(path)
+        with laspy.open(path) as reader:
+            _check_header(path, reader.header)
+            seen = 0
+            for chunk in reader.chunk_iterator(CHUNK_POINTS):
+                seen += len(chunk)
+                yield np.asarray(chunk.x, np.float64), np.asarray(chunk.y, np.float64)
+            if seen != reader.header.point_count:
+                raise fail(path, f"truncated LAS/LAZ file: {seen} of {reader.header.point_count} points could be read")
+    except InputError:
+        raise
     except LAS_ERRORS as exc:
         raise _las_error(path, exc) from exc
 
@@ -397,6 +559,7 @@ def info_las(path) -> dict:
     from .describe import Survey, classes
 
     try:
+        check_structure(path)
         with laspy.open(path) as reader:
             h = reader.header
             fmt = h.point_format

@@ -54,6 +54,8 @@ def estimate(ctx: "StageContext", key: str, default=None):
     """A survey-wide estimate (see roadx_ti.estimates), or ``default`` when not measured."""
     value = ctx.facts.get(ESTIMATES, {}).get(key)
     return default if value is None else value
+# ctx.facts key: number of points of the whole survey a cloud was cut from (tiled runs)
+SURVEY_POINTS = "survey_points"
 
 
 @dataclass

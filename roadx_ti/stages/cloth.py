@@ -2,19 +2,33 @@
 
 Both run the cloth simulation filter with the `cloth-simulation-filter` package's parameters;
 they differ in which side of the cloth they keep.
+
+The cloth is laid over occupied space only (roadx_ti.isolation): isolated points (a part of at most
+SMALL_PART points more than 100 m from the rest, in 3D: also a low-noise point far below) get no
+cloth and are not ground; the other points are split into their plan-view parts, and each part
+gets its own cloth over its own bounding box (on the same world lattice, starting above its own
+lowest point). A cloud that is one part without isolated points runs one cloth, as before. A
+cloth that would still hold more particles than the points justify (memory.dense_limit) stops the
+run with one line naming its extent and cloth_resolution.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import numpy as np
 from pydantic import Field
 
+from roadx_ti import isolation, memory
 from roadx_ti.cloud import Cloud
-from roadx_ti.kernels.cloth import LATTICE_PERIOD, ClothResult, csf
+from roadx_ti.errors import DataError
+from roadx_ti.kernels.cloth import LATTICE_PERIOD, ClothResult, LatticeTooLarge, csf
 from roadx_ti.stages.base import CLASS_GROUND, SURVEY_Z_MIN, Stage, StageContext, StageOptions, StageResult
 
 # In a tile, the cloth starts above the survey's lowest point (as the whole run's does), but never
 # more than this far below the tile's own lowest point: an archive's lowest point says nothing about
 # a mountain tile, and a longer fall costs iterations.
 MAX_START_DROP = 100.0   # m
+BYTES_PER_PARTICLE = 64  # the simulation's per-particle arrays (kernels/cloth.py csf), with slope smoothing
 
 
 class ClothOptions(StageOptions):
@@ -51,27 +65,93 @@ def world_lattice(origin, resolution: float):
     return tuple(float((-float(o)) % period) for o in origin[:2])
 
 
-def start_z(cloud: Cloud, ctx: StageContext):
-    """Local z the cloth starts above: the survey's lowest point in a tile (ctx fact set by the
-    tiling), capped at MAX_START_DROP below the cloud's own; None (the cloud's own) otherwise."""
+def start_z(points, ctx: StageContext):
+    """Local z the cloth over ``points`` (a Cloud or its (n, 3) xyz) starts above: the survey's
+    lowest point in a tile (ctx fact set by the tiling), capped at MAX_START_DROP below the
+    points' own; None (the points' own) otherwise."""
+    xyz = getattr(points, "xyz", points)
     survey = ctx.facts.get(SURVEY_Z_MIN)
-    if survey is None or cloud.n == 0:
+    if survey is None or len(xyz) == 0:
         return None
-    return max(float(survey), float(cloud.xyz[:, 2].min()) - MAX_START_DROP)
+    return max(float(survey), float(xyz[:, 2].min()) - MAX_START_DROP)
 
 
-def _run_cloth(options: ClothOptions, cloud: Cloud, ctx: StageContext) -> ClothResult:
-    lattice = world_lattice(cloud.origin, options.cloth_resolution) if options.align_to_world else None
-    return csf(cloud.xyz, cloth_resolution=options.cloth_resolution,
-               rigidness=options.rigidness, time_step=options.time_step,
-               iterations=options.iterations, class_threshold=options.class_threshold,
-               slope_smooth=options.slope_smooth, lattice_origin=lattice,
-               start_z=start_z(cloud, ctx) if options.align_to_world else None)
+@dataclass
+class Cloths:
+    """The cloths of a cloud's parts: ground and height above the cloth per point (NaN for
+    isolated points, which no cloth lies under), and the largest part's cloth (for the DTM)."""
+    ground: np.ndarray
+    largest: ClothResult | None  # None when every point is isolated
+    parts: list                  # (point indices, ClothResult) per simulated part
+    isolated: int = 0
+
+    def height_above(self, xyz) -> np.ndarray:
+        if self.largest is not None and len(self.parts) == 1 and len(self.parts[0][0]) == len(xyz):
+            return self.largest.height_above(xyz)
+        out = np.full(len(xyz), np.nan, np.float32)
+        for index, result in self.parts:
+            out[index] = result.height_above(xyz[index])
+        return out
+
+    @property
+    def iterations(self) -> int:
+        return max((int(r.iterations) for _, r in self.parts), default=0)
 
 
-def _info(result: ClothResult) -> dict:
-    return {"ground": int(result.ground.sum()), "cloth_shape": list(result.cloth_z.shape),
-            "iterations": int(result.iterations)}
+def _simulate(options: ClothOptions, xyz: np.ndarray, origin, ctx: StageContext, stage: str) -> ClothResult:
+    lattice = world_lattice(origin, options.cloth_resolution) if options.align_to_world else None
+    try:
+        return csf(xyz, cloth_resolution=options.cloth_resolution,
+                   rigidness=options.rigidness, time_step=options.time_step,
+                   iterations=options.iterations, class_threshold=options.class_threshold,
+                   slope_smooth=options.slope_smooth, lattice_origin=lattice,
+                   start_z=start_z(xyz, ctx) if options.align_to_world else None,
+                   max_particles=memory.dense_limit(len(xyz), BYTES_PER_PARTICLE))
+    except LatticeTooLarge as exc:
+        extent = xyz[:, :2].max(axis=0) - xyz[:, :2].min(axis=0)
+        raise DataError(
+            f"{stage}: a cloth over {extent[0]:.0f} x {extent[1]:.0f} m would hold {exc.particles:,} particles "
+            f"at cloth_resolution {options.cloth_resolution:g} m "
+            f"({memory.format_size(exc.particles * BYTES_PER_PARTICLE)}) for {len(xyz):,} points, more than "
+            f"the {exc.limit:,} allowed: raise stages.{stage}.cloth_resolution or run in tiles "
+            "(--tile-size)") from None
+
+
+def _run_cloth(options: ClothOptions, cloud: Cloud, ctx: StageContext, stage: str) -> Cloths:
+    xyz = cloud.xyz
+    isolated = isolation.isolated_in(xyz, isolation.SMALL_PART, ctx)
+    kept = np.arange(cloud.n) if isolated is None else np.flatnonzero(~isolated)
+    split = isolation.parts(xyz[kept, :2] if isolated is not None else xyz[:, :2])
+    ground = np.zeros(cloud.n, bool)
+    results = []
+    for members in split.members():
+        index = kept[members]
+        whole = len(index) == cloud.n
+        result = _simulate(options, xyz if whole else xyz[index], cloud.origin, ctx, stage)
+        ground[index] = result.ground
+        results.append((index, result))
+    largest = max(results, key=lambda r: len(r[0]))[1] if results else None
+    return Cloths(ground, largest, results, 0 if isolated is None else int(isolated.sum()))
+
+
+def _keep_for_dtm(result: Cloths, cloud: Cloud, ctx: StageContext) -> None:
+    """The largest part's cloth, for a DTM export (output.dtm); a raster over all parts would be
+    sized by their extent."""
+    if result.largest is not None:
+        ctx.facts["cloth"] = (result.largest, cloud.origin)
+        if len(result.parts) > 1:
+            ctx.facts["cloth_parts"] = len(result.parts)
+
+
+def _info(result: Cloths) -> dict:
+    shape = list(result.largest.cloth_z.shape) if result.largest is not None else [0, 0]
+    info = {"ground": int(result.ground.sum()), "cloth_shape": shape,
+            "iterations": result.iterations}
+    if len(result.parts) > 1:
+        info["parts"] = len(result.parts)
+    if result.isolated:
+        info["isolated"] = result.isolated
+    return info
 
 
 class ClothSmooth(Stage):
@@ -82,8 +162,8 @@ class ClothSmooth(Stage):
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         if cloud.n == 0:
             return StageResult()
-        result = _run_cloth(self.options, cloud, ctx)
-        ctx.facts["cloth"] = (result, cloud.origin)   # for a DTM export (output.dtm)
+        result = _run_cloth(self.options, cloud, ctx, self.name)
+        _keep_for_dtm(result, cloud, ctx)
         return StageResult(keep=result.ground, info=_info(result))
 
 
@@ -95,8 +175,8 @@ class ClothGround(Stage):
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         if cloud.n == 0:
             return StageResult()
-        result = _run_cloth(self.options, cloud, ctx)
-        ctx.facts["cloth"] = (result, cloud.origin)   # for a DTM export (output.dtm)
+        result = _run_cloth(self.options, cloud, ctx, self.name)
+        _keep_for_dtm(result, cloud, ctx)
         keep = ~result.ground
         # aligned with the working points; the pipeline narrows it to the kept ones
         height = result.height_above(cloud.xyz)

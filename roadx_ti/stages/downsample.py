@@ -2,12 +2,18 @@
 
 Both are 'subsample' stages: the skipped points are not decided here; after the pipeline they take
 the label of their nearest processed point (METHODS.md R1, label transfer).
+
+Uniform downsampling never skips an isolated point (roadx_ti.isolation: a part of at most
+SMALL_PART points, more than 100 m from the rest): its nearest processed point would be that far
+away, and its stride must not shift the sample of the other points (which are sampled exactly as
+in a cloud without it).
 """
 from __future__ import annotations
 
 import numpy as np
 from pydantic import Field, model_validator
 
+from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
 from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult, estimate
 
@@ -31,21 +37,29 @@ class UniformDownsample(Stage):
     Options = UniformOptions
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
-        n = cloud.n
+        from roadx_ti.kernels.downsample import uniform_sample
+
         o = self.options
         ratio = o.ratio
         if o.target_density is not None:
             # the survey's density (a tile keeps the survey-wide share of its points)
             density = estimate(ctx, "density_per_m2") or 0.0
             ratio = min(1.0, o.target_density / density) if density > 0 else 1.0
+        every = o.target_points is None and ratio == 1.0
+        isolated = None if every or not cloud.n else isolation.isolated_in(cloud.xyz, isolation.SMALL_PART, ctx)
+        rest = None if isolated is None else np.flatnonzero(~isolated)
+        n = cloud.n if rest is None else len(rest)
         # a ratio > 0 keeps at least one point: rounding must not leave a tiny cloud unprocessed
         target = o.target_points or max(int(round(n * ratio)), min(n, 1))
-        from roadx_ti.kernels.downsample import uniform_sample
-
-        keep = np.zeros(n, bool)
-        keep[uniform_sample(cloud.xyz, min(target, n))[0]] = True
+        keep = np.zeros(cloud.n, bool)
+        info = {"ratio": round(min(target, n) / max(n, 1), 5)}
+        if rest is None:
+            keep[uniform_sample(cloud.xyz, min(target, n))[0]] = True
+            return StageResult(keep=keep, mode="subsample", info={"target_points": int(keep.sum()), **info})
+        keep[rest[uniform_sample(cloud.xyz[rest], min(target, n))[0]]] = True
+        keep[isolated] = True
         return StageResult(keep=keep, mode="subsample", info={"target_points": int(keep.sum()),
-                                                              "ratio": round(target / max(n, 1), 5)})
+                                                              "isolated": int(isolated.sum()), **info})
 
 
 class VoxelOptions(StageOptions):

@@ -1,4 +1,8 @@
-"""R4 grid min-height slope / height-difference filter (kernel: roadx_ti.kernels.grid_min)."""
+"""R4 grid min-height slope / height-difference filter (kernel: roadx_ti.kernels.grid_min).
+
+The grid's corner is the points' minimum without isolated points (roadx_ti.isolation), so that
+far strays neither move the cells of the others nor size the grid (the kernel's cells are sparse
+when a dense grid would not fit)."""
 from __future__ import annotations
 
 from typing import Literal
@@ -6,6 +10,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
+from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.grid_min import slope_filter
 from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult, estimate
@@ -30,7 +35,8 @@ class GridSlope(Stage):
         if cloud.n == 0:
             return StageResult()
         o = self.options
-        keep, height = slope_filter(cloud.xyz, o.step, o.slope_max, o.dh_max)
+        keep, height = slope_filter(cloud.xyz, o.step, o.slope_max, o.dh_max,
+                                    origin=isolation.corner_without_isolated(cloud.xyz, ctx))
         keep = keep.astype(bool)
         info = {}
         allowance = o.noise_allowance

@@ -1,4 +1,10 @@
-"""R2 statistical outlier removal (kernel: roadx_ti.kernels.outliers.sor_keep)."""
+"""R2 statistical outlier removal (kernel: roadx_ti.kernels.outliers.sor_keep).
+
+Isolated points (roadx_ti.isolation: a part of at most k points, more than 100 m from every other
+point) are outliers whatever the statistics say: their k neighbourhood reaches across the gap. They
+are removed and left out of mu and sigma, which a handful of points kilometres away would
+otherwise inflate for the whole cloud (a cloud without them is filtered exactly as before).
+"""
 from __future__ import annotations
 
 from typing import Literal
@@ -6,6 +12,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
+from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
 from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
 
@@ -34,5 +41,15 @@ class StatisticalOutlierRemoval(Stage):
             return StageResult(info={"skipped": "fewer than 2 points"})
         if k < o.k:
             ctx.log.warning("sor: k = %d but only %d points: using k = %d", o.k, cloud.n, k)
-        keep = np.asarray(sor_keep(cloud.xyz, k, o.std_ratio, mode=o.mode, convention=o.convention), bool)
-        return StageResult(keep=keep, info={"removed": int((~keep).sum()), "k": k})
+        isolated = isolation.isolated_in(cloud.xyz, k, ctx)
+        if isolated is None:
+            keep = np.asarray(sor_keep(cloud.xyz, k, o.std_ratio, mode=o.mode, convention=o.convention), bool)
+            return StageResult(keep=keep, info={"removed": int((~keep).sum()), "k": k})
+        rest = np.flatnonzero(~isolated)
+        keep = np.zeros(cloud.n, bool)
+        k_rest = min(k, len(rest) - 1)
+        if k_rest >= 1:
+            keep[rest] = np.asarray(sor_keep(cloud.xyz[rest], k_rest, o.std_ratio, mode=o.mode,
+                                             convention=o.convention), bool)
+        return StageResult(keep=keep, info={"removed": int((~keep).sum()), "k": k,
+                                            "isolated": int(isolated.sum())})

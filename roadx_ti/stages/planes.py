@@ -35,18 +35,47 @@ class RansacOptions(StageOptions):
                                "reference is the minimum over the 3 x 3 cells around a point's cell")
 
 
-def _height_above_local_minimum(xyz, cell_size):
+def _height_above_local_minimum(xyz, cell_size, ctx=None):
     """z minus the lowest z of the 3 x 3 cells around each point's cell (per-cell minima from the
-    grid-min kernel; the 3 x 3 minimum runs on the small coarse grid on the host)."""
-    from scipy.ndimage import minimum_filter
+    grid-min kernel; the 3 x 3 minimum over the occupied cells on the host, found by their keys,
+    so a bounding box inflated by far points costs nothing)."""
+    from roadx_ti.isolation import corner_without_isolated
+    from roadx_ti.kernels.grid_min import cell_minimum, dense_fits, sparse_cell_minimum
 
-    from roadx_ti.kernels.grid_min import cell_minimum
-
-    cell, cell_lowest, n_cols = cell_minimum(xyz, cell_size)
-    n_rows = len(cell_lowest) // n_cols
-    cell_min_z = np.where(cell_lowest >= 0, xyz[np.maximum(cell_lowest, 0), 2], np.inf).astype(np.float32)
-    local_min = minimum_filter(cell_min_z.reshape(n_rows, n_cols), size=3, mode="nearest").ravel()
+    origin = corner_without_isolated(xyz, ctx)       # far strays move no cell of the others
+    if dense_fits(xyz, cell_size, origin):
+        cell, cell_lowest, n_cols = cell_minimum(xyz, cell_size, origin)
+        occupied = np.flatnonzero(cell_lowest >= 0)
+        col, row = occupied % n_cols, occupied // n_cols
+        lowest = cell_lowest[occupied]
+        slot = np.full(len(cell_lowest), -1, np.int64)
+        slot[occupied] = np.arange(len(occupied))
+        cell = slot[cell]
+    else:
+        cell, lowest, col_row = sparse_cell_minimum(xyz, cell_size, origin)
+        col, row = col_row[:, 0], col_row[:, 1]
+    cell_min_z = xyz[lowest, 2].astype(np.float32)
+    local_min = _neighbourhood_minimum(col.astype(np.int64), row.astype(np.int64), cell_min_z)
     return xyz[:, 2] - local_min[cell]
+
+
+def _neighbourhood_minimum(col, row, value):
+    """Per occupied cell, the minimum of ``value`` over the occupied cells of its 3 x 3 block."""
+    col, row = col - col.min(), row - row.min()
+    span = int(row.max()) + 3
+    key = (col + 1) * span + (row + 1)
+    order = np.argsort(key)
+    sorted_key = key[order]
+    best = value.copy()
+    for dc in (-1, 0, 1):
+        for dr in (-1, 0, 1):
+            if dc == dr == 0:
+                continue
+            target = key + dc * span + dr
+            j = np.minimum(np.searchsorted(sorted_key, target), len(key) - 1)
+            hit = sorted_key[j] == target
+            best[hit] = np.minimum(best[hit], value[order[j[hit]]])
+    return best
 
 
 class RansacPlanes(Stage):
@@ -58,7 +87,7 @@ class RansacPlanes(Stage):
 
         o = self.options
         xyz = cloud.xyz
-        height_above_ground = _height_above_local_minimum(xyz, o.ground_cell)
+        height_above_ground = _height_above_local_minimum(xyz, o.ground_cell, ctx)
         keep = np.ones(cloud.n, bool)
         planes = []
         cos_tilt = math.cos(math.radians(o.max_tilt_deg))

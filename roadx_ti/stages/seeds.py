@@ -4,12 +4,16 @@ Runs on the non-ground points (after cloth_ground). Computes the kNN graph and t
 features once and hands them on: point_data 'normal', 'curvature', 'roof_seed' (uint8), and
 ctx.facts['knn'] (int32 (n, k) indices into this stage's working set) for roof_growing. The stage
 narrows nothing, so those indices stay valid for the next stage.
+Isolated points (roadx_ti.isolation: a part of at most k points, more than 100 m from the rest)
+are left out of the kNN graph: they get no neighbours (-1), no seed, curvature 1, so far strays
+size no grid and no other point's neighbourhood changes.
 """
 from __future__ import annotations
 
 import numpy as np
 from pydantic import Field
 
+from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
 from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
 
@@ -28,15 +32,41 @@ class RoofSeedsOptions(StageOptions):
                                 "about 45 degrees); null = off")
 
 
+def _seeds(xyz, k: int, o: RoofSeedsOptions):
+    """(kNN indices, covariance features, seed constraint masks) of ``xyz``."""
+    from roadx_ti.kernels.features import covariance_features
+    from roadx_ti.kernels.neighbors import knn
+    from roadx_ti.kernels.seeds import seed_constraints
+
+    indices, _ = knn(xyz, k)
+    features = covariance_features(xyz, indices)
+    masks = seed_constraints(indices, features["curvature"], features["max_distance"], features["extent"],
+                             curvature_max=o.curvature_max, plane_coef=o.plane_coef, r_max=o.r_max, alpha=o.alpha)
+    return indices, features, masks
+
+
+def _with_isolated(n, k, rest, found):
+    """kNN rows, features and seed masks ``found`` for the ``rest`` points (None: none) spread
+    over all n points, the isolated ones without neighbours (-1), seeds or planarity."""
+    full_idx = np.full((n, k), -1, np.int32)
+    fill = {"normal": np.zeros((n, 3), np.float32), "curvature": np.ones(n, np.float32),
+            "max_distance": np.full(n, np.inf, np.float32), "extent": np.zeros((n, 3), np.float32)}
+    full_masks = {name: np.zeros(n, np.uint8) for name in ("planar", "compact", "gradient", "seed")}
+    if found is not None:
+        indices, features, masks = found
+        full_idx[rest] = rest[np.asarray(indices)].astype(np.int32)
+        for name, values in fill.items():
+            values[rest] = np.asarray(features[name])
+        for name, values in full_masks.items():
+            values[rest] = np.asarray(masks[name])
+    return full_idx, fill, full_masks
+
+
 class RoofSeeds(Stage):
     name = "roof_seeds"
     Options = RoofSeedsOptions
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
-        from roadx_ti.kernels.features import covariance_features
-        from roadx_ti.kernels.neighbors import knn
-        from roadx_ti.kernels.seeds import seed_constraints
-
         o = self.options
         n = cloud.n
         if n < 4:
@@ -48,11 +78,13 @@ class RoofSeeds(Stage):
         k = min(o.k, n - 1)
         if k < o.k:
             ctx.log.warning("roof_seeds: k = %d but only %d points: using k = %d", o.k, n, k)
-        indices, _ = knn(cloud.xyz, k)
-        features = covariance_features(cloud.xyz, indices)
-        masks = seed_constraints(indices, features["curvature"], features["max_distance"],
-                                 features["extent"], curvature_max=o.curvature_max,
-                                 plane_coef=o.plane_coef, r_max=o.r_max, alpha=o.alpha)
+        far = isolation.isolated_in(cloud.xyz, k, ctx)
+        if far is None:
+            indices, features, masks = _seeds(cloud.xyz, k, o)
+        else:
+            rest = np.flatnonzero(~far)
+            found = _seeds(cloud.xyz[rest], k, o) if len(rest) > k else None
+            indices, features, masks = _with_isolated(n, k, rest, found)
         ctx.facts["knn"] = indices
         seed = np.asarray(masks["seed"], np.uint8)
         info = {"k": k, "seeds": int(seed.sum()),

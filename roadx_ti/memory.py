@@ -1,0 +1,135 @@
+"""Memory: what a run may use, what it will need, and how large a dense structure may be.
+
+``run_budget``: bytes a run may use in total: ROADX_TI_MEMORY_LIMIT when set (``--memory-limit``,
+``memory_limit`` in a config: the user's word, which also overrides what is detected), else what
+this process holds plus the machine's available memory (psutil), lowered by a cgroup limit
+(containers, batch schedulers) and an address-space rlimit (``ulimit -v``).
+
+``estimate``: peak RSS of ``python -m roadx_ti run`` over n points: BASE_BYTES plus
+BYTES_PER_POINT of the pipeline, measured on the CPU backend with /usr/bin/time on synthetic scenes
+(uav-road with configs/road_uav.yaml, als-roof with roof_als.yaml and ground.yaml; LAZ in and out,
+no PNG): the growth of the peak from 300 k to 1 M points per point (road 239, roof 226, ground 154
+B/pt; at 16 M, benchmarks/RESULTS.md: road 4.06 GB, roof 3.31 GB, ground 1.74 GB, i.e. 240, 195,
+98 B/pt above the base), rounded up. A run is refused (or tiled, with tiling.auto) when the
+estimate times SAFETY exceeds the budget.
+
+``dense_limit``: how many cells a dense grid or lattice may have: a multiple of the points it is
+laid over (work and memory bounded by the points, not by their extent) and what fits in memory.
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+
+LIMIT_VARIABLE = "ROADX_TI_MEMORY_LIMIT"
+
+BYTES_PER_POINT = {"road": 250, "roof": 230, "ground": 160}
+BASE_BYTES = 200 * 2**20          # peak RSS of a run over a few points (Python, Taichi, numpy, laspy)
+SAFETY = 1.25                     # the estimate is raised by this factor before it is compared
+
+CELLS_PER_POINT = 64              # a dense structure may hold this many cells per point ...
+MIN_DENSE_CELLS = 1 << 22         # ... and at least this many, whatever the points
+
+
+def parse_size(text) -> int:
+    """Bytes from '512M', '8G', '1.5T', '123456' (binary units: K = 1024)."""
+    m = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*([kmgt]?)i?b?\s*", str(text).lower())
+    if not m:
+        raise ValueError(f"not a memory size: {text!r} (use e.g. 512M, 8G)")
+    scale = {"": 1, "k": 2**10, "m": 2**20, "g": 2**30, "t": 2**40}[m.group(2)]
+    return int(float(m.group(1)) * scale)
+
+
+def format_size(n: float) -> str:
+    for unit, scale in (("TB", 2**40), ("GB", 2**30), ("MB", 2**20)):
+        if n >= scale:
+            return f"{n / scale:.1f} {unit}"
+    return f"{n / 2**10:.0f} KB"
+
+
+def _read_int(path: str):
+    try:
+        text = open(path).read().strip()
+    except OSError:
+        return None
+    return int(text) if text.isdigit() else None
+
+
+def _cgroup_free():
+    """Bytes left under this process's cgroup memory limit (v2, then v1), None without one."""
+    for limit_path, usage_path in (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+                                   ("/sys/fs/cgroup/memory/memory.limit_in_bytes",
+                                    "/sys/fs/cgroup/memory/memory.usage_in_bytes")):
+        limit, usage = _read_int(limit_path), _read_int(usage_path)
+        if limit is not None and usage is not None and limit < 2**60:
+            return max(limit - usage, 0)
+    return None
+
+
+def _rlimit_free():
+    try:
+        import resource
+        import psutil
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if soft == resource.RLIM_INFINITY:
+            return None
+        return max(soft - psutil.Process().memory_info().vms, 0)
+    except (ImportError, OSError, ValueError):
+        return None
+
+
+def _held() -> int:
+    import psutil
+
+    return int(psutil.Process().memory_info().rss)
+
+
+def run_budget() -> int:
+    """Bytes this run may use in total (module docstring)."""
+    import psutil
+
+    limit = os.environ.get(LIMIT_VARIABLE)
+    if limit:
+        return parse_size(limit)
+    headroom = [psutil.virtual_memory().available, _cgroup_free(), _rlimit_free()]
+    return _held() + int(min(h for h in headroom if h is not None))
+
+
+def available_bytes() -> int:
+    """Bytes this process may still grow by: the run budget less what it holds."""
+    return max(run_budget() - _held(), 0)
+
+
+def estimate(pipeline: str, points: int) -> int:
+    """Expected peak memory (bytes) of a run of ``pipeline`` over ``points`` points."""
+    return int(BASE_BYTES + BYTES_PER_POINT.get(pipeline, max(BYTES_PER_POINT.values())) * points)
+
+
+def points_that_fit(pipeline: str, budget: int) -> int:
+    """How many points a run of ``pipeline`` can take within ``budget`` bytes (with SAFETY)."""
+    per_point = BYTES_PER_POINT.get(pipeline, max(BYTES_PER_POINT.values()))
+    return max(int((budget / SAFETY - BASE_BYTES) / per_point), 0)
+
+
+def fits(pipeline: str, points: int, budget: int | None = None) -> tuple[bool, int, int]:
+    """(fits, estimated bytes, budget bytes) for a run of ``pipeline`` over ``points`` points."""
+    need = estimate(pipeline, points)
+    budget = run_budget() if budget is None else budget
+    return need * SAFETY <= budget, need, budget
+
+
+def dense_limit(points: int, bytes_per_cell: int) -> int:
+    """Most cells a dense grid or lattice over ``points`` points may hold: CELLS_PER_POINT per point
+    (at least MIN_DENSE_CELLS), and no more than half the available memory holds."""
+    by_points = max(CELLS_PER_POINT * int(points), MIN_DENSE_CELLS)
+    by_memory = available_bytes() // (2 * max(int(bytes_per_cell), 1))
+    return int(max(min(by_points, by_memory), 1))
+
+
+def tile_size_for(points: int, area: float, target_points: int) -> float:
+    """Edge (m, rounded up to 10 m) of square tiles holding about ``target_points`` of ``points``
+    spread over ``area`` m2."""
+    density = max(points / max(area, 1.0), 1e-9)
+    return 10.0 * math.ceil(math.sqrt(max(target_points, 1) / density) / 10.0)
