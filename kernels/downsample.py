@@ -1,7 +1,12 @@
-"""R1 uniform downsampling: a deterministic stride over the input order.
+"""R1 uniform downsampling over the input order: a deterministic stride, or a nested pattern.
 
-Point j of the output is input point floor(j * n / m) (METHODS.md R1). The product j * n can pass
-2^31, so the index is computed in 64-bit integers (CPU, CUDA and Vulkan with shaderInt64).
+Stride: point j of the output is input point floor(j * n / m) (METHODS.md R1). The product j * n
+can pass 2^31, so the index is computed in 64-bit integers (CPU, CUDA and Vulkan with shaderInt64).
+
+Nested: point i is kept when (i * 2654435769) mod 2^32 < ratio * 2^32, i.e. frac(i * 0.618...)
+< ratio: a Weyl sequence over the input order, as even as the stride over any run of points, but
+a slightly different ratio keeps nearly the same points (the stride re-draws almost all of them),
+so a density estimate that moves by 0.1 % moves the processed set by about as much.
 """
 import numpy as np
 from .taichi_compat import ti
@@ -53,3 +58,25 @@ def uniform_sample(xyz, target: int):
     kept_index, kept_xyz = np.empty(m, np.int32), np.empty((m, 3), np.float32)
     _stride_gather(points, kept_xyz, kept_index, n, m, -(-m // BLOCK))
     return kept_index, kept_xyz
+
+
+WEYL = 2654435769          # round(2^32 / golden ratio)
+
+
+@ti.kernel
+def _weyl_keep(keep: ti.types.ndarray(dtype=ti.u8, ndim=1), threshold: ti.u32):
+    for i in range(keep.shape[0]):
+        key = ti.cast(i, ti.u32) * ti.u32(WEYL)      # wraps mod 2^32
+        keep[i] = ti.cast(key < threshold, ti.u8)
+
+
+def nested_sample(n: int, ratio: float):
+    """uint8 (n,) keep flags of the nested pattern (module docstring); numpy."""
+    keep = np.zeros(int(n), np.uint8)
+    if n:
+        threshold = int(min(max(ratio, 0.0), 1.0) * 4294967296.0)
+        if threshold >= 4294967296:
+            keep[:] = 1
+        else:
+            _weyl_keep(keep, threshold)
+    return keep

@@ -10,6 +10,8 @@ in a cloud without it).
 """
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 from pydantic import Field, model_validator
 
@@ -24,6 +26,10 @@ class UniformOptions(StageOptions):
     target_density: float | None = Field(None, gt=0, description="keep this many points per m2 of "
                                          "occupied plan area (the survey's, see roadx_ti.estimates); "
                                          "sparser input is kept whole")
+    pattern: Literal["stride", "nested"] = Field(
+        "stride", description="stride: point j of the output is input point floor(j n / m) (METHODS.md "
+        "R1); nested: point i is kept when frac(0.618.. i) < ratio, so that a slightly different "
+        "ratio keeps nearly the same points (kernels/downsample.py)")
 
     @model_validator(mode="after")
     def _one_of(self):
@@ -37,7 +43,7 @@ class UniformDownsample(Stage):
     Options = UniformOptions
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
-        from roadx_ti.kernels.downsample import uniform_sample
+        from roadx_ti.kernels.downsample import nested_sample, uniform_sample
 
         o = self.options
         ratio = o.ratio
@@ -53,10 +59,15 @@ class UniformDownsample(Stage):
         target = o.target_points or max(int(round(n * ratio)), min(n, 1))
         keep = np.zeros(cloud.n, bool)
         info = {"ratio": round(min(target, n) / max(n, 1), 5)}
+
+        def sample(xyz):
+            if o.pattern == "nested":
+                return np.flatnonzero(nested_sample(len(xyz), min(target, n) / max(n, 1)))
+            return uniform_sample(xyz, min(target, n))[0]
         if rest is None:
-            keep[uniform_sample(cloud.xyz, min(target, n))[0]] = True
+            keep[sample(cloud.xyz)] = True
             return StageResult(keep=keep, mode="subsample", info={"target_points": int(keep.sum()), **info})
-        keep[rest[uniform_sample(cloud.xyz[rest], min(target, n))[0]]] = True
+        keep[rest[sample(cloud.xyz[rest])]] = True
         keep[isolated] = True
         return StageResult(keep=keep, mode="subsample", info={"target_points": int(keep.sum()),
                                                               "isolated": int(isolated.sum()), **info})
