@@ -43,16 +43,19 @@ def uniform_sample(n: int, size: int, seed: int = 0) -> np.ndarray:
     return np.sort(np.random.default_rng(seed).choice(n, size, replace=False))
 
 
-def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0) -> dict:
-    """The estimates of the module docstring for ``cloud`` (a whole survey or a sample of one)."""
+def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, survey_points: int | None = None,
+            area: float | None = None) -> dict:
+    """The estimates of the module docstring for ``cloud``: a whole survey, or (with
+    ``survey_points`` and ``area``) a uniform sample of one of that many points over that area."""
     from roadx_ti.kernels.features import covariance_features
     from roadx_ti.kernels.neighbors import knn
     from roadx_ti.kernels.regions import coarse_gradient
 
     n = cloud.n
-    area = occupied_area(cloud.xyz[:, :2])
-    out = {"points": int(n), "plan_area_m2": round(area, 1),
-           "density_per_m2": round(n / area, 3) if area else 0.0}
+    total = n if survey_points is None else int(survey_points)
+    area = occupied_area(cloud.xyz[:, :2]) if area is None else float(area)
+    out = {"points": total, "plan_area_m2": round(area, 1),
+           "density_per_m2": round(total / area, 3) if area else 0.0}
     if n < 8:
         return out
     pick = uniform_sample(n, sample_points, seed)
@@ -62,7 +65,7 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0) -> 
     # plan spacing of the full cloud: a sample of fraction f is 1/sqrt(f) sparser
     flat = np.ascontiguousarray(np.column_stack([xyz[:, :2], np.zeros(len(xyz), np.float32)]))
     nn_plan = knn(flat, 1)[1][:, 0]
-    out["point_spacing_m"] = round(float(np.median(nn_plan)) * np.sqrt(len(xyz) / n), 4)
+    out["point_spacing_m"] = round(float(np.median(nn_plan)) * np.sqrt(len(xyz) / total), 4)
     gradient = coarse_gradient(xyz, 2.5)
     a = np.repeat(np.arange(len(xyz)), k)
     b = idx.reshape(-1)
@@ -82,4 +85,53 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0) -> 
         grey = rgb[pick].mean(axis=1)
         out["colour_noise"] = round(MAD_TO_SIGMA * float(np.median(np.abs(grey[b] - grey[a]))) / np.sqrt(2.0), 3)
     log.info("survey estimates: %s", out)
+    return out
+
+
+def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, runs_per_file: int = 64) -> dict:
+    """Survey-wide estimates of a catalog of files (roadx_ti.tiling.catalog) before tiling: a
+    sample of about ``sample_points`` points spread over every file (runs of consecutive points
+    at evenly spaced places of each file: exports are written tile by tile or line by line, so
+    the runs cover the whole area); the plan area is the occupied cells of the sample at a cell
+    holding about five sample points."""
+    import laspy
+
+    from roadx_ti import io
+
+    total = sum(f.count for f in files)
+    if total == 0:
+        return {"points": 0, "plan_area_m2": 0.0, "density_per_m2": 0.0}
+    pieces = []
+    for f in files:
+        want = int(np.ceil(sample_points * f.count / total))
+        if not want:
+            continue
+        if f.path.lower().endswith((".las", ".laz")) and not f.path.lower().endswith(".copc.laz"):
+            runs = max(1, min(runs_per_file, want // 500))
+            per_run = max(1, want // runs)
+            starts = np.linspace(0, max(f.count - per_run, 0), runs).astype(np.int64)
+            xyz, rgb = [], []
+            with laspy.open(f.path) as reader:
+                for start in starts:
+                    reader.seek(int(start))
+                    record = reader.read_points(per_run)
+                    xyz.append(np.column_stack([np.asarray(record.x), np.asarray(record.y), np.asarray(record.z)]))
+                    if "red" in record.point_format.dimension_names:
+                        rgb.append(np.column_stack([np.asarray(record[c]) for c in ("red", "green", "blue")]))
+            world = np.concatenate(xyz).astype(np.float64)
+            colour = np.concatenate(rgb).astype(np.uint16) if rgb and np.concatenate(rgb).any() else None
+            pieces.append(Cloud(xyz=(world - read_origin).astype(np.float32), origin=read_origin, rgb=colour,
+                                source=f.path))
+        else:     # COPC (its chunks are not seekable by point) and the other formats: read whole
+            cloud = io.read(f.path, origin=read_origin)
+            pieces.append(cloud.subset(uniform_sample(cloud.n, want)))
+    read_origin = np.asarray(read_origin, np.float64)
+    sample = Cloud(xyz=np.concatenate([p.xyz for p in pieces]), origin=read_origin,
+                   rgb=np.concatenate([p.rgb for p in pieces]) if all(p.rgb is not None for p in pieces) else None)
+    # occupied area at a cell holding about five sample points on average
+    cell = max(AREA_CELL, float(np.sqrt(5.0 * occupied_area(sample.xyz[:, :2], 4.0) / max(sample.n, 1))))
+    area = occupied_area(sample.xyz[:, :2], cell)
+    out = measure(sample, survey_points=total, area=area)
+    out["sample_points"] = int(sample.n)
+    out["area_cell_m"] = round(cell, 2)
     return out

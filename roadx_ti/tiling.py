@@ -42,7 +42,7 @@ import numpy as np
 
 from roadx_ti.cloud import Cloud
 from roadx_ti.errors import DataError
-from roadx_ti.stages.base import SURVEY_POINTS, SURVEY_Z_MIN
+from roadx_ti.stages.base import ESTIMATES, SURVEY_POINTS, SURVEY_Z_MIN
 
 log_default = logging.getLogger("roadx_ti")
 
@@ -405,6 +405,7 @@ class TileJob:
     seed: int
     survey_z_min: float = math.inf   # world: the lowest header z of the catalog (cloth start)
     survey_points: int = 0           # points of the catalog (a tile of a stray point sees it isolated)
+    survey_estimates: dict | None = None   # roadx_ti.estimates of the whole catalog, for 'auto' options
 
 
 @dataclass
@@ -514,6 +515,8 @@ def run_tile(job: TileJob) -> TileResult:
         # the cloth of every tile starts where the whole survey's would (stages/cloth.py)
         ctx.facts[SURVEY_Z_MIN] = job.survey_z_min - float(job.read_origin[2])
     ctx.facts[SURVEY_POINTS] = job.survey_points
+    if job.survey_estimates is not None:
+        ctx.facts[ESTIMATES] = dict(job.survey_estimates)   # every tile the survey's values
     labels = pipelines.run(cloud, pipelines.build_stages(job.stage_specs), ctx=ctx)
     result.pipeline_seconds = time.perf_counter() - t0
     result.stages = [{k: r[k] for k in ("stage", "points_in", "points_out", "seconds")} for r in labels.stages]
@@ -543,14 +546,20 @@ def run_tile(job: TileJob) -> TileResult:
 
 # -------------------------------------------------------------------------------- executors
 
+def backend_ready() -> bool:
+    from roadx_ti import backend
+    return backend.is_initialized()
+
+
 def make_jobs(plan: TilePlan, files: list[CatalogFile], stage_specs, *, backend: str,
-              threads: int | None, seed: int) -> list[TileJob]:
+              threads: int | None, seed: int, survey_estimates: dict | None = None) -> list[TileJob]:
     survey_z_min = min((f.z_range[0] for f in files if f.count), default=math.inf)
     return [TileJob(tile=t, paths={k: os.path.abspath(files[k].path) for k in t.files}, grid=plan.grid,
                     neighbour_cells={u: (plan.tiles[u].col, plan.tiles[u].row) for u in t.neighbours},
                     windows={u: plan.tiles[u].window for u in t.neighbours}, read_origin=plan.read_origin,
                     stage_specs=list(stage_specs), backend=backend, threads=threads, seed=seed,
-                    survey_z_min=survey_z_min, survey_points=sum(f.count for f in files))
+                    survey_z_min=survey_z_min, survey_points=sum(f.count for f in files),
+                    survey_estimates=survey_estimates)
             for t in plan.tiles]
 
 
@@ -1014,12 +1023,23 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
         results[result.index] = result
         bar.step(plan.tiles[result.index], result)
 
+    from roadx_ti.estimates import measure_catalog
+
+    t_est = time.perf_counter()
+    if not backend_ready():
+        from roadx_ti import backend
+        backend.init(cfg.backend, threads=cfg.threads)
+    survey = measure_catalog(files, plan.read_origin)
+    estimate_s = time.perf_counter() - t_est
+    log.info("survey estimates (%d sampled points) in %.2f s: %s", survey.get("sample_points", 0), estimate_s,
+             {k: v for k, v in survey.items() if k not in ("sample_points",)})
     t_tiles = time.perf_counter()
     session = None
     try:
         if workers is None and not scheduler:
             executor, n_workers = "in-process", 1
-            jobs = make_jobs(plan, files, stage_specs, backend=cfg.backend, threads=cfg.threads, seed=cfg.seed)
+            jobs = make_jobs(plan, files, stage_specs, backend=cfg.backend, threads=cfg.threads, seed=cfg.seed,
+                             survey_estimates=survey)
             run_in_process(jobs, on_done)
         else:
             session = _DaskSession(workers, scheduler, log, inputs=[os.path.abspath(f.path) for f in files],
@@ -1029,7 +1049,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
             # one Taichi runtime per worker process; CPU unless the config names a backend
             threads = cfg.threads or (max(1, (os.cpu_count() or 1) // int(workers)) if workers else None)
             jobs = make_jobs(plan, files, stage_specs, backend="cpu" if cfg.backend == "auto" else cfg.backend,
-                             threads=threads, seed=cfg.seed)
+                             threads=threads, seed=cfg.seed, survey_estimates=survey)
             run_on_dask(session.client, jobs, on_done, in_flight=2 * n_workers)
     finally:
         bar.close()
@@ -1050,10 +1070,11 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
         "inputs": [{"path": f.path, "points": f.count, "bounds": list(f.bounds)} for f in files],
         "outputs": [str(o) for o, _ in outputs], "points": total_points, "points_written": written,
         "tiling": plan.describe() | {"buffer_from_stages": reaches},
+        "estimates": survey,
         "segments": segments,
         "target_class": target, "target_points": int(merge.class_counts[target]),
         "class_counts": {str(c): int(v) for c, v in enumerate(merge.class_counts) if v},
-        "seconds": {"tiles": round(tiles_s, 4), "merge": round(merge_s, 4),
+        "seconds": {"estimates": round(estimate_s, 4), "tiles": round(tiles_s, 4), "merge": round(merge_s, 4),
                     "total": round(time.perf_counter() - t_start, 4),
                     "tile_sum": round(sum(r.seconds for r in results.values()), 4)},
         "tiles": [{"tile": [t.col, t.row], "core": list(t.core), "window": list(t.window),
