@@ -257,14 +257,16 @@ def _reset_regions(count: ti.types.ndarray(dtype=ti.i64, ndim=1), csum: ti.types
 
 
 @ti.kernel
-def _fill_i64(a: ti.types.ndarray(dtype=ti.i64, ndim=1), value: ti.i64, size: ti.i32):
+def _clear_table(table: ti.types.ndarray(dtype=ti.i64, ndim=2), size: ti.i32):
     for i in range(size):
-        a[i] = value
+        table[i, 0] = ti.i64(_EMPTY)
+        table[i, 1] = 0
+        table[i, 2] = 0
 
 
 @ti.kernel
 def _insert_pairs(ea: ti.types.ndarray(dtype=ti.i32, ndim=1), eb: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                  label: ti.types.ndarray(dtype=ti.i32, ndim=1), keys: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                  label: ti.types.ndarray(dtype=ti.i32, ndim=1), table: ti.types.ndarray(dtype=ti.i64, ndim=2),
                   bits: ti.i32, n: ti.i64):
     """Every boundary edge's region pair into the open-addressing table: an integer atomic_min
     claims an empty slot or displaces a larger key, which is carried on (keys in a slot only
@@ -277,7 +279,7 @@ def _insert_pairs(ea: ti.types.ndarray(dtype=ti.i32, ndim=1), eb: ti.types.ndarr
             key = ti.min(la, lb) * n + ti.max(la, lb)
             slot = _slot(key, bits)
             for _ in range(1 << bits):
-                old = ti.atomic_min(keys[slot], key)
+                old = ti.atomic_min(table[slot, 0], key)
                 if old == key or old == ti.i64(_EMPTY):
                     break
                 if old > key:
@@ -286,27 +288,28 @@ def _insert_pairs(ea: ti.types.ndarray(dtype=ti.i32, ndim=1), eb: ti.types.ndarr
 
 
 @ti.func
-def _find_slot(keys: ti.template(), key: ti.i64, bits: ti.i32) -> ti.i32:
+def _find_slot(table: ti.template(), key: ti.i64, bits: ti.i32) -> ti.i32:
     mask = (1 << bits) - 1
     slot = _slot(key, bits)
-    while keys[slot] != key:
+    while table[slot, 0] != key:
         slot = (slot + 1) & mask
     return slot
 
 
 @ti.kernel
 def _accumulate_pairs(ea: ti.types.ndarray(dtype=ti.i32, ndim=1), eb: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                      up: ti.types.ndarray(dtype=ti.i64, ndim=1), down: ti.types.ndarray(dtype=ti.i64, ndim=1),
-                      label: ti.types.ndarray(dtype=ti.i32, ndim=1), keys: ti.types.ndarray(dtype=ti.i64, ndim=1),
-                      pair_edges: ti.types.ndarray(dtype=ti.i64, ndim=1),
-                      pair_steps: ti.types.ndarray(dtype=ti.i64, ndim=1), bits: ti.i32, n: ti.i64):
+                      weight: ti.types.ndarray(dtype=ti.i64, ndim=1), steps: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                      label: ti.types.ndarray(dtype=ti.i32, ndim=1), table: ti.types.ndarray(dtype=ti.i64, ndim=2),
+                      bits: ti.i32, n: ti.i64):
+    """Items (a, b, edges, steps): graph edges in the first round, then the previous round's
+    region pairs (a and b root points, mapped through ``label`` to their regions now)."""
     for e in range(ea.shape[0]):
         la = label[ea[e]]
         lb = label[eb[e]]
         if la != lb:
-            slot = _find_slot(keys, ti.min(la, lb) * n + ti.max(la, lb), bits)
-            ti.atomic_add(pair_edges[slot], 1)
-            ti.atomic_add(pair_steps[slot], up[e] + down[e])
+            slot = _find_slot(table, ti.min(la, lb) * n + ti.max(la, lb), bits)
+            ti.atomic_add(table[slot, 1], weight[e])
+            ti.atomic_add(table[slot, 2], steps[e])
 
 
 @ti.func
@@ -319,8 +322,7 @@ def _mean_colour(csum: ti.template(), count: ti.template(), r: ti.i32):
 
 
 @ti.kernel
-def _best_neighbours(keys: ti.types.ndarray(dtype=ti.i64, ndim=1), pair_edges: ti.types.ndarray(dtype=ti.i64, ndim=1),
-                     pair_steps: ti.types.ndarray(dtype=ti.i64, ndim=1), count: ti.types.ndarray(dtype=ti.i64, ndim=1),
+def _best_neighbours(table: ti.types.ndarray(dtype=ti.i64, ndim=2), count: ti.types.ndarray(dtype=ti.i64, ndim=1),
                      csum: ti.types.ndarray(dtype=ti.i64, ndim=2), best: ti.types.ndarray(dtype=ti.i64, ndim=1),
                      n: ti.i64, level: ti.f64, size_pass: ti.i32, min_size: ti.i64, max_chroma: ti.f64,
                      veto: ti.f64, size: ti.i32):
@@ -328,7 +330,7 @@ def _best_neighbours(keys: ti.types.ndarray(dtype=ti.i64, ndim=1), pair_edges: t
     other region), an integer minimum (ties to the lower region id). Costs are squared mean
     colour distances in float64 (rounded to float32 for the order key)."""
     for s in range(size):
-        key = keys[s]
+        key = table[s, 0]
         if key != ti.i64(_EMPTY):
             a = ti.cast(key // n, ti.i32)
             b = ti.cast(key % n, ti.i32)
@@ -337,7 +339,7 @@ def _best_neighbours(keys: ti.types.ndarray(dtype=ti.i64, ndim=1), pair_edges: t
             grey = (d[0] + d[1] + d[2]) / 3.0
             c0, c1, c2 = d[0] - grey, d[1] - grey, d[2] - grey
             chroma2 = c0 * c0 + c1 * c1 + c2 * c2
-            ok = ti.cast(pair_steps[s], ti.f64) <= veto * STEP_SCALE * ti.cast(pair_edges[s], ti.f64) \
+            ok = ti.cast(table[s, 2], ti.f64) <= veto * STEP_SCALE * ti.cast(table[s, 1], ti.f64) \
                 and chroma2 <= max_chroma * max_chroma
             if size_pass:
                 ok = ok and (count[a] < min_size or count[b] < min_size)
@@ -395,16 +397,20 @@ def _clear_round(best: ti.types.ndarray(dtype=ti.i64, ndim=1), targeted: ti.type
         targeted[r] = 0
 
 
-def _host_round(label, count, csum, ea, eb, up_q, down_q, n, level, size_pass, min_size, max_chroma, veto):
+def _host_round(label, count, csum, ea, eb, weight, step_sum, n, level, size_pass, min_size, max_chroma, veto):
     """One merging round on the host (numpy), the same arithmetic as the kernels: for backends
     without 64-bit atomics (Vulkan, Metal). Updates label/count/csum in place; returns the
-    number of regions that joined another."""
+    number of regions that joined another and the round's region pairs (the next round's items)."""
     la, lb = label[ea], label[eb]
-    key = np.minimum(la, lb).astype(np.int64) * n + np.maximum(la, lb)
+    cross = la != lb
+    key = np.minimum(la, lb)[cross].astype(np.int64) * n + np.maximum(la, lb)[cross]
     uk, inv = np.unique(key, return_inverse=True)
     inv = inv.ravel()
-    edges = np.bincount(inv, minlength=len(uk)).astype(np.float64)
-    steps = np.bincount(inv, weights=(up_q + down_q).astype(np.float64), minlength=len(uk))
+    pair_edges = np.bincount(inv, weights=weight[cross], minlength=len(uk)).astype(np.int64)
+    pair_steps = np.bincount(inv, weights=step_sum[cross], minlength=len(uk)).astype(np.int64)
+    items = (uk // n, uk % n, pair_edges, pair_steps)
+    edges = pair_edges.astype(np.float64)
+    steps = pair_steps.astype(np.float64)
     pa, pb = uk // n, uk % n
     inv_a = 1.0 / (count[pa].astype(np.float64) * COLOUR_SCALE)
     inv_b = 1.0 / (count[pb].astype(np.float64) * COLOUR_SCALE)
@@ -431,33 +437,37 @@ def _host_round(label, count, csum, ea, eb, up_q, down_q, n, level, size_pass, m
     keep = ~targeted[me]
     me, other = me[keep], other[keep]
     if not len(me):
-        return 0
+        return 0, items
     np.add.at(count, other, count[me])
     np.add.at(csum, other, csum[me])
     hook = np.arange(n, dtype=np.int64)
     hook[me] = other
     label[:] = hook[label]
-    return len(me)
+    return len(me), items
 
 
 def _device_round(state, live, n, bits, level, size_pass, min_size, max_chroma, veto):
     """The same round with the kernels (64-bit integer atomics): returns the regions joined."""
-    label, count, csum, best, hook, targeted, merged, keys, pair_edges, pair_steps = state
-    for table, value in ((keys, _EMPTY), (pair_edges, 0), (pair_steps, 0)):
-        _fill_i64(table, value, 1 << bits)
+    label, count, csum, best, hook, targeted, merged, table = state
+    _clear_table(table, 1 << bits)
     ua, ub, uu, dd = (kernel_array(v, v.dtype) for v in live)
-    _insert_pairs(ua, ub, label, keys, bits, n)
-    _accumulate_pairs(ua, ub, uu, dd, label, keys, pair_edges, pair_steps, bits, n)
+    _insert_pairs(ua, ub, label, table, bits, n)
+    _accumulate_pairs(ua, ub, uu, dd, label, table, bits, n)
     _clear_round(best, targeted)
-    _best_neighbours(keys, pair_edges, pair_steps, count, csum, best, n, level, size_pass,
+    _best_neighbours(table, count, csum, best, n, level, size_pass,
                      int(min_size), float(max_chroma), float(veto), 1 << bits)
     _choose_hooks(best, count, label, hook, targeted)
     merged[0] = 0
     _apply_hooks(hook, targeted, count, csum, merged)
     joined = int(merged[0])
+    # the round's region pairs are the next round's items (far fewer than the graph edges)
+    rows = to_numpy(table)[:1 << bits]
+    used = rows[:, 0] != _EMPTY
+    key = rows[used, 0]
+    items = ((key // n).astype(np.int32), (key % n).astype(np.int32), rows[used, 1], rows[used, 2])
     if joined:
         _relabel(label, hook)
-    return joined
+    return joined, items
 
 
 def _native_int64_atomics() -> bool:
@@ -469,7 +479,7 @@ def _native_int64_atomics() -> bool:
 
 
 def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, levels, max_chroma_step,
-                            step_veto, min_size=0, max_rounds=1000, settle=0.002, host=None):
+                            step_veto, min_size=0, max_rounds=1000, settle=0.005, host=None):
     """Agglomerate points into regions (see the module docstring) and return a RegionGraph.
 
     ea, eb: int (E,) graph edges; steps_up / steps_down: float (E,) probability that the edge
@@ -499,33 +509,25 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
         count = output_array(ti.i64, (n,), col)
         csum = output_array(ti.i64, (n, 3), col)
         cap = max(4, int(np.ceil(np.log2(max(2 * len(a32), 16)))))
+        # the pair table: one row (key, edges, steps, pad) per slot, one cache line per probe
         state = (label, count, csum) + tuple(output_array(t, (n,), col) for t in (ti.i64, ti.i32, ti.i32)) \
-            + (output_array(ti.i32, (1,), col),) + tuple(output_array(ti.i64, (1 << cap,), col) for _ in range(3))
+            + (output_array(ti.i32, (1,), col), output_array(ti.i64, (1 << cap, 4), col))
         if n:
             _reset_regions(count, csum, kernel_array(col, np.float32), label)
-    live = (a32, b32, up_q, down_q)
+    live = (a32, b32, np.ones(len(a32), np.int64), up_q + down_q)
     schedule = [(float(v), 0) for v in levels] + ([(0.0, 1)] if min_size > 1 else [])
     rounds = 0
     regions_left = n
     for level, size_pass in schedule:
-        while rounds < max_rounds and n:
-            # only boundary edges matter; interior ones never become boundary again
-            lab_host = label if host else to_numpy(label)
-            boundary = lab_host[live[0]] != lab_host[live[1]]
-            if not boundary.all():
-                live = tuple(np.ascontiguousarray(v[boundary]) for v in live)
-            if not len(live[0]):
-                break
+        while rounds < max_rounds and n and len(live[0]):
             rounds += 1
-            if merge_regions_by_colour.trace is not None:
-                merge_regions_by_colour.trace.append((level, size_pass, len(live[0])))
             if host:
-                joined = _host_round(label, count, csum, *live, n, level, size_pass, min_size,
-                                     float(max_chroma_step), float(step_veto))
+                joined, live = _host_round(label, count, csum, *live, n, level, size_pass, min_size,
+                                           float(max_chroma_step), float(step_veto))
             else:
                 bits = max(4, int(np.ceil(np.log2(2 * len(live[0])))))
-                joined = _device_round(state, live, n, bits, level, size_pass, min_size, max_chroma_step,
-                                       step_veto)
+                joined, live = _device_round(state, live, n, bits, level, size_pass, min_size, max_chroma_step,
+                                             step_veto)
             if joined == 0:
                 break
             regions_left -= joined
@@ -533,9 +535,6 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
                 break       # the level has settled: the rest of its merges are a thin tail
     return _region_graph(np.asarray(to_numpy(label)).astype(np.int64), to_numpy(count), to_numpy(csum),
                          a32, b32, np.asarray(steps_up, np.float64), np.asarray(steps_down, np.float64))
-
-
-merge_regions_by_colour.trace = None
 
 
 def _region_graph(label, count, csum, ea, eb, up, down):

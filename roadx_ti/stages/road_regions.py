@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 from pydantic import Field
-from scipy.stats import norm
+from scipy.special import ndtr
 
 from roadx_ti.cloud import Cloud
 from roadx_ti.road_graph import Weights, label_road
@@ -34,7 +34,10 @@ MAD_TO_SIGMA = 1.4826
 
 
 class RoadRegionsOptions(StageOptions):
-    k: int = Field(12, ge=4, le=32, description="neighbours per point of the graph")
+    k: int = Field(12, ge=4, le=32, description="neighbours per point of the filters (median colour, "
+                   "edge-preserving heights)")
+    graph_k: int | None = Field(None, ge=3, le=32, description="the nearest this many of them are the "
+                                "region graph's edges (None: all k)")
     edge_factor: float = Field(2.0, gt=0, description="longest graph edge, as a multiple of the median "
                                "distance to the k-th neighbour (the measured point spacing)")
     slope_cell: float = Field(2.5, gt=0, description="cell edge of the coarse planes whose slope is "
@@ -51,6 +54,8 @@ class RoadRegionsOptions(StageOptions):
     step_veto: float = Field(0.1, ge=0, le=1, description="regions never merge when more than this share "
                              "of their boundary edges step")
     min_region_points: int = Field(8, ge=1, description="smaller regions join their best neighbour")
+    settle: float = Field(0.005, gt=0, lt=1, description="a merging level ends when a round joins fewer "
+                          "than this share of the regions left (the rest is a thin tail)")
     height_noise: float | None = Field(None, gt=0, description="height noise (m); None: measured")
     colour_noise: float | None = Field(None, gt=0, description="colour noise of the median-filtered "
                                        "colours (8-bit units); None: measured")
@@ -77,10 +82,13 @@ def kerb_evidence(steps, sigma, kerb_min, kerb_max, prior):
     the measured spread, with a wider tail for outliers)."""
     r = np.asarray(steps, np.float64)
     sigma = max(float(sigma), 1e-4)
-    flat = 0.9 * norm.pdf(r, 0.0, sigma) + 0.1 * norm.pdf(r, 0.0, 3.0 * sigma)
+    z = r / sigma
+    # Gaussian densities and cdfs as plain ufuncs (scipy.special: no distribution overhead)
+    flat = (0.9 * np.exp(-0.5 * z * z) + 0.1 / 3.0 * np.exp(-0.5 * z * z / 9.0)) / (sigma * np.sqrt(2.0 * np.pi))
     span = kerb_max - kerb_min
-    up = (norm.cdf((r - kerb_min) / sigma) - norm.cdf((r - kerb_max) / sigma)) / span
-    down = (norm.cdf((-r - kerb_min) / sigma) - norm.cdf((-r - kerb_max) / sigma)) / span
+    lo, hi = kerb_min / sigma, kerb_max / sigma
+    up = (ndtr(z - lo) - ndtr(z - hi)) / span
+    down = (ndtr(-z - lo) - ndtr(-z - hi)) / span
     a, b, c = (1.0 - prior) * flat, 0.5 * prior * up, 0.5 * prior * down
     total = a + b + c + 1e-300
     return b / total, c / total
@@ -113,7 +121,9 @@ class RoadRegions(Stage):
         source, colour = colour_channels(cloud)
         indices, distances = knn(xyz, k)
         spacing = float(np.median(distances[:, -1]))
-        ea, eb = regions.graph_edges(indices, distances, o.edge_factor * spacing)
+        gk = min(o.graph_k or k, k)
+        ea, eb = regions.graph_edges(np.ascontiguousarray(indices[:, :gk]), np.ascontiguousarray(distances[:, :gk]),
+                                     o.edge_factor * spacing)
         neighbours = np.where(distances <= o.edge_factor * spacing, indices, -1).astype(np.int32)
         gradient = regions.coarse_gradient(xyz, o.slope_cell)
         raw = regions.edge_steps(xyz, xyz[:, 2].copy(), gradient, ea.astype(np.int32), eb.astype(np.int32))
@@ -127,7 +137,7 @@ class RoadRegions(Stage):
         colour_noise = o.colour_noise or max(MAD_TO_SIGMA * float(np.median(np.abs(grey[eb] - grey[ea]))) / np.sqrt(2.0), 0.5)
         levels = [colour_noise * f for f in o.colour_levels]
         graph = regions.merge_regions_by_colour(n, ea, eb, up, down, colour_f, levels, o.max_chroma_step,
-                                                o.step_veto, o.min_region_points)
+                                                o.step_veto, o.min_region_points, settle=o.settle)
         density = plan_density(xyz[:, :2])
         road_region, facts = label_road(graph, density, Weights(**o.weights))
         is_road = road_region[graph.label]
