@@ -108,6 +108,33 @@ def _edge_steps(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), z: ti.types.ndarray
         out[e] = (z[b] - z[a]) - gx * (xyz[b, 0] - xyz[a, 0]) - gy * (xyz[b, 1] - xyz[a, 1])
 
 
+@ti.kernel
+def _boundary_vote(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                   grad: ti.types.ndarray(dtype=ti.f32, ndim=2), label: ti.types.ndarray(dtype=ti.u8, ndim=1),
+                   step: ti.f32, out: ti.types.ndarray(dtype=ti.u8, ndim=1)):
+    for i in range(xyz.shape[0]):
+        ones = ti.Vector([0.0] * MAX_ROW, ti.f32)
+        zeros = ti.Vector([0.0] * MAX_ROW, ti.f32)
+        n1 = 0
+        n0 = 0
+        for s in range(nbr.shape[1]):
+            j = nbr[i, s]
+            if j >= 0:
+                zc = xyz[j, 2] - grad[i, 0] * (xyz[j, 0] - xyz[i, 0]) - grad[i, 1] * (xyz[j, 1] - xyz[i, 1])
+                if label[j] == 1:
+                    ones[n1] = zc
+                    n1 += 1
+                else:
+                    zeros[n0] = zc
+                    n0 += 1
+        out[i] = label[i]
+        if n1 >= 3 and n0 >= 3:
+            z1 = _median(ones, n1)
+            z0 = _median(zeros, n0)
+            if ti.abs(z1 - z0) >= step:
+                out[i] = ti.cast(ti.abs(xyz[i, 2] - z1) < ti.abs(xyz[i, 2] - z0), ti.u8)
+
+
 def _check_rows(nbr, n):
     if len(nbr.shape) != 2 or int(nbr.shape[0]) != n:
         raise ValueError(f"neighbour table must have shape (n, k) with n={n}, got {tuple(nbr.shape)}")
@@ -140,6 +167,21 @@ def mode_heights(xyz, neighbors, gradient, width: float, steps: int = 3):
     out = output_array(ti.f32, (n,), xyz)
     if n:
         _mode_heights(pts, nbr, kernel_array(gradient, np.float32), float(width), int(steps), out)
+    return like_input(out, xyz)
+
+
+def boundary_vote(xyz, neighbors, gradient, label, step: float):
+    """uint8 (n,): a point with neighbours of both labels (at least three each) whose two groups'
+    median slope-corrected heights differ by at least ``step`` (a kerb between them) takes the
+    label of the group whose height is closer to its own; every other point keeps its label.
+    Region labels follow region boundaries; this puts the boundary on the step itself."""
+    pts = kernel_array(xyz, np.float32)
+    n = length(pts)
+    nbr = kernel_array(neighbors, np.int32)
+    _check_rows(nbr, n)
+    out = output_array(ti.u8, (n,), xyz)
+    if n:
+        _boundary_vote(pts, nbr, kernel_array(gradient, np.float32), kernel_array(label, np.uint8), float(step), out)
     return like_input(out, xyz)
 
 

@@ -54,6 +54,8 @@ class RoadRegionsOptions(StageOptions):
     step_veto: float = Field(0.1, ge=0, le=1, description="regions never merge when more than this share "
                              "of their boundary edges step")
     min_region_points: int = Field(8, ge=1, description="smaller regions join their best neighbour")
+    boundary_passes: int = Field(2, ge=0, le=5, description="passes of the boundary height vote "
+                                 "(kernels.regions.boundary_vote) after the road is chosen")
     settle: float = Field(0.005, gt=0, lt=1, description="a merging level ends when a round joins fewer "
                           "than this share of the regions left (the rest is a thin tail)")
     height_noise: float | None = Field(None, gt=0, description="height noise (m); None: measured")
@@ -141,6 +143,10 @@ class RoadRegions(Stage):
         density = plan_density(xyz[:, :2])
         road_region, facts = label_road(graph, density, Weights(**o.weights))
         is_road = road_region[graph.label]
+        for _ in range(o.boundary_passes):
+            # the road's edge on the kerb itself: boundary points go to the side of their height
+            is_road = regions.boundary_vote(xyz, neighbours, gradient, is_road.astype(np.uint8),
+                                            max(0.5 * o.kerb_min, 2.0 * step_sigma)).astype(bool)
         labels = np.where(is_road, CLASS_ROAD, CLASS_OTHER).astype(np.uint8)
         estimates = {"point_spacing_m": round(spacing, 4), "density_per_m2": round(density, 2),
                      "height_noise_m": round(height_noise, 4), "filtered_step_sigma_m": round(step_sigma, 4),
