@@ -39,11 +39,12 @@ class Weights:
     colour_bandwidth: float = 6.0   # colour units of the density kernels
     max_chroma: float = 20.0      # regions more chromatic than this lean to not road ...
     chroma_cost: float = 1.0      # ... by this per point and per max_chroma beyond it
-    contrast: float = 12.0        # colour scale of the contrast-sensitive smoothness
+    contrast: float = 12.0        # colour scale of the contrast-sensitive smoothness (chroma)
+    bright_floor: float = 0.3     # smoothness across a brightness step keeps at least this share (0.7, 1.0 measured: no better)
     reference_density: float = 60.0   # points / m2 at which colour and smoothness balance as given
-    keep_size: float = 0.5        # a road component stays when this share of the largest ...
-    keep_kerb: float = 0.1        # ... or this share of the largest kerb evidence
-    min_share: float = 0.02       # and at least this share of all road points
+    keep_area: float = 300.0      # a road component stays when it covers this many m2 ...
+    keep_kerb: float = 0.15       # ... or this share of its boundary edges are kerbs below which it lies
+    min_area: float = 4.0         # and it covers at least this many m2
     absorb: float = 0.6           # a not-road group with this share of its boundary on road joins it
     absorb_max: float = 0.1       # ... when not larger than this share of the road
 
@@ -119,7 +120,7 @@ def label_road(graph, density: float, w: Weights = Weights()):
     d_chroma = np.sqrt(((chroma_vec[pa] - chroma_vec[pb]) ** 2).sum(axis=1))
     d_bright = np.abs(mean[pa].mean(axis=1) - mean[pb].mean(axis=1))
     contrast = np.exp(-0.5 * (d_chroma / w.contrast) ** 2) * \
-        (0.3 + 0.7 * np.exp(-0.5 * (d_bright / (3.0 * w.contrast)) ** 2))
+        (w.bright_floor + (1.0 - w.bright_floor) * np.exp(-0.5 * (d_bright / (3.0 * w.contrast)) ** 2))
     potts = w.smooth * contrast * smooth
     k_up_b = kerb * b_upper
     k_up_a = kerb * ~b_upper
@@ -138,7 +139,7 @@ def label_road(graph, density: float, w: Weights = Weights()):
         np.maximum(chroma - w.max_chroma, 0.0) / w.max_chroma
     road = _min_cut(unary, A, B, C, D, pa, pb, n)
     cut_road = int(count[road].sum())
-    road = _keep_components(graph, road, kerb, b_upper, w)
+    road = _keep_components(graph, road, kerb, b_upper, density, w)
     road, absorbed = _absorb_enclosed(graph, road, kerb, w)
     facts = {"regions": int(n), "kerb_edges": float(round(kerb.sum(), 1)),
              "kerb_pairs": int(clear.sum()), "road_points_after_cut": cut_road,
@@ -151,20 +152,24 @@ def _components(n, pa, pb, link):
     return connected_components(g, directed=False)
 
 
-def _keep_components(graph, road, kerb, b_upper, w):
-    """Road components over continuous pairs: keep the large ones and those with kerb
-    evidence (road below a kerb whose upper side is not road)."""
+def _keep_components(graph, road, kerb, b_upper, density, w):
+    """Road components over continuous pairs: keep the large ones (area) and those bounded by
+    kerbs they lie below (a share of their own boundary): absolute rules, so that a street
+    segment cut off by parked cars counts the same in a small scene and a large one."""
     n, pa, pb = graph.n_regions, graph.pa, graph.pb
+    if not road.any():
+        return road
     nc, comp = _components(n, pa, pb, road[pa] & road[pb] & (kerb < 0.5 * graph.edges))
-    size = np.bincount(comp, weights=graph.count * road, minlength=nc)
+    area = np.bincount(comp, weights=graph.count * road, minlength=nc) / max(density, 1e-9)
     lower = np.where(b_upper, pa, pb)
     upper = np.where(b_upper, pb, pa)
     ev = (kerb > 0) & road[lower] & ~road[upper]
     evidence = np.bincount(comp[lower[ev]], weights=kerb[ev], minlength=nc)
-    if not road.any():
-        return road
-    keep = ((size >= w.keep_size * size.max()) | (evidence >= w.keep_kerb * max(evidence.max(), 1e-9))) \
-        & (size >= w.min_share * size.sum())
+    out_a = road[pa] & ~road[pb]
+    out_b = road[pb] & ~road[pa]
+    boundary = np.bincount(np.concatenate([comp[pa[out_a]], comp[pb[out_b]]]),
+                           weights=np.concatenate([graph.edges[out_a], graph.edges[out_b]]), minlength=nc)
+    keep = ((area >= w.keep_area) | (evidence >= w.keep_kerb * np.maximum(boundary, 1e-9))) & (area >= w.min_area)
     return road & keep[comp]
 
 

@@ -56,6 +56,9 @@ _FLAT_ROOF_COLOURS = np.array([[130, 125, 115], [58, 58, 62], [200, 200, 196], [
                                [86, 86, 88]], dtype=F32)
 
 
+CROWN = 6.0        # m: the camber rises over at most this distance from a road edge
+
+
 def street_look(seed: int) -> dict:
     """The per-seed look of a scene (drawn before the scene's size is known: density sets it)."""
     r = np.random.default_rng(np.random.SeedSequence([int(seed) & 0xFFFFFFFF, StreetScene.KIND_ID, 7]))
@@ -250,7 +253,6 @@ class StreetScene(Scene):
         park_r = np.array([rd["park"][1] for rd in roads])[ridx]
         walk_w = np.where(f["signed"] > 0, np.array([rd["walk"][1] for rd in roads])[ridx],
                           np.array([rd["walk"][0] for rd in roads])[ridx])
-        edge_off = half + np.where(f["signed"] > 0, park_r, park_l)
         e = f["edge"]
         road = e < 0
         walk = ~road & (e < walk_w)
@@ -269,9 +271,11 @@ class StreetScene(Scene):
             in_band[sel] = d < rd["crossing_half"]
         kerb = np.array([rd["kerb"] for rd in roads])[ridx] * (1.0 - 0.88 * lowered)
         T = self._terrain(x, y).astype(np.float64)
+        # camber: the surface rises with the distance inside the carriageway from its nearest
+        # edge (-e, continuous through junctions of roads of different widths), up to the crown
         camber = self.camber
-        z_road = T - camber * f["off"]
-        z_edge = T - camber * edge_off
+        z_edge = T - camber * CROWN
+        z_road = z_edge + camber * np.minimum(np.maximum(-e, 0.0), CROWN)
         z_walk = z_edge + kerb + 0.015 * np.maximum(e, 0)
         lot_step = 0.03
         z_lot = z_edge + kerb + 0.015 * walk_w + lot_step
