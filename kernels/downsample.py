@@ -1,4 +1,5 @@
-"""R1 uniform downsampling over the input order: a deterministic stride, or a nested pattern.
+"""R1 uniform downsampling: a deterministic stride or a nested pattern over the point order, or a
+hash of each point's own coordinates.
 
 Stride: point j of the output is input point floor(j * n / m) (METHODS.md R1). The product j * n
 can pass 2^31, so the index is computed in 64-bit integers (CPU, CUDA and Vulkan with shaderInt64).
@@ -7,6 +8,10 @@ Nested: point i is kept when (i * 2654435769) mod 2^32 < ratio * 2^32, i.e. frac
 < ratio: a Weyl sequence over the input order, as even as the stride over any run of points, but
 a slightly different ratio keeps nearly the same points (the stride re-draws almost all of them),
 so a density estimate that moves by 0.1 % moves the processed set by about as much.
+
+Hashed: point i is kept when a 32-bit hash of its quantised world coordinates is below ratio *
+2^32: nested like the Weyl pattern, and independent of the point order (a shuffled or re-tiled
+delivery keeps the same points; the host chooses the quantisation, roadx_ti.stages.downsample).
 """
 import numpy as np
 from .taichi_compat import ti
@@ -79,4 +84,39 @@ def nested_sample(n: int, ratio: float):
             keep[:] = 1
         else:
             _weyl_keep(keep, threshold)
+    return keep
+
+
+@ti.func
+def _fmix32(h: ti.u32) -> ti.u32:
+    # murmur3's finaliser: every input bit flips each output bit with probability about 1/2
+    h ^= h >> 16
+    h *= ti.u32(0x85EBCA6B)
+    h ^= h >> 13
+    h *= ti.u32(0xC2B2AE35)
+    h ^= h >> 16
+    return h
+
+
+@ti.kernel
+def _hash_keep(cells: ti.types.ndarray(dtype=ti.u32, ndim=2), keep: ti.types.ndarray(dtype=ti.u8, ndim=1),
+               threshold: ti.u32):
+    for i in range(keep.shape[0]):
+        h = _fmix32(cells[i, 0] ^ ti.u32(0x9E3779B9))
+        h = _fmix32(h ^ cells[i, 1])
+        h = _fmix32(h ^ cells[i, 2])
+        keep[i] = ti.cast(h < threshold, ti.u8)
+
+
+def hashed_sample(cells, ratio: float):
+    """uint8 (n,) keep flags of the hashed pattern for (n, 3) uint32 quantised coordinates (the
+    low 32 bits of each axis' cell number); numpy."""
+    cells = np.ascontiguousarray(cells, dtype=np.uint32)
+    keep = np.zeros(len(cells), np.uint8)
+    if len(cells):
+        threshold = int(min(max(ratio, 0.0), 1.0) * 4294967296.0)
+        if threshold >= 4294967296:
+            keep[:] = 1
+        else:
+            _hash_keep(cells, keep, threshold)
     return keep

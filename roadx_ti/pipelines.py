@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from roadx_ti.cloud import Cloud
+from roadx_ti.ordering import canonical_order
 from roadx_ti.stages import stage_class
 from roadx_ti.stages.base import CLASS_OTHER, ESTIMATES, StageContext
 
@@ -56,7 +57,24 @@ def run(cloud: Cloud, stages, *, ctx: StageContext | None = None, truth: np.ndar
     target and non-target points removed, for accuracy reports; with ``target_class`` also, for a
     labelling stage, how many target points of its working set it leaves without that class
     (``unlabelled_target``) and how many others it gives it (``labelled_other``); for a stage that
-    only segments, the same counts with "in a segment" for "given the class"."""
+    only segments, the same counts with "in a segment" for "given the class".
+
+    The stages see the points in canonical order (roadx_ti.ordering), so the result does not
+    depend on the input's point order; the arrays returned are in the input's order."""
+    order = canonical_order(cloud)
+    if order is None:
+        return _run(cloud, stages, ctx, truth, default_class, progress, target_class)
+    result = _run(cloud.subset(order), stages, ctx, None if truth is None else np.asarray(truth)[order],
+                  default_class, progress, target_class)
+    for name in ("classification", "decided_by", "segment_id", "processed"):
+        ordered = getattr(result, name)
+        back = np.empty_like(ordered)
+        back[order] = ordered
+        setattr(result, name, back)
+    return result
+
+
+def _run(cloud, stages, ctx, truth, default_class, progress, target_class) -> PipelineResult:
     ctx = ctx or StageContext()
     if ESTIMATES not in ctx.facts:
         # measured on the whole input before any stage (a tiled run hands in the survey's)

@@ -55,3 +55,40 @@ def test_skipped_points_take_their_nearest_processed_points_result():
     np.testing.assert_array_equal(result.classification[skipped], result.classification[donor])
     np.testing.assert_array_equal(result.segment_id[skipped], result.segment_id[donor])
     np.testing.assert_array_equal(result.decided_by[skipped], result.decided_by[donor])
+
+
+def test_hashed_pattern_is_nested_order_free_and_keeps_its_share(ti_arch):
+    from roadx_ti.kernels.downsample import hashed_sample
+    from roadx_ti.stages.downsample import coordinate_cells
+
+    rng = np.random.default_rng(3)
+    xyz = (rng.random((50000, 3)) * [40, 40, 2]).astype(np.float32)
+    origin = np.array([512000.0, 5403000.0, 100.0])
+    cells = coordinate_cells(xyz, origin, 0.01)
+    few, more = hashed_sample(cells, 0.2).astype(bool), hashed_sample(cells, 0.3).astype(bool)
+    assert not (few & ~more).any()                      # a larger ratio keeps a superset
+    for ratio, kept in ((0.2, few), (0.3, more)):       # a Bernoulli share: within 4 sigma
+        assert abs(kept.mean() - ratio) < 4 * np.sqrt(ratio * (1 - ratio) / len(xyz))
+    perm = rng.permutation(len(xyz))
+    np.testing.assert_array_equal(hashed_sample(coordinate_cells(xyz[perm], origin, 0.01), 0.2).astype(bool),
+                                  few[perm])
+
+
+def test_hashed_pattern_keeps_the_same_points_at_another_origin_and_from_1mm_or_1cm_deliveries(ti_arch):
+    from roadx_ti.kernels.downsample import hashed_sample
+    from roadx_ti.stages.downsample import coordinate_cells
+
+    rng = np.random.default_rng(4)
+    world = np.array([512000.0, 5403000.0, 100.0]) + rng.random((40000, 3)) * [60, 60, 3]
+
+    def kept(w, origin):
+        return hashed_sample(coordinate_cells((w - origin).astype(np.float32), origin, 0.01), 0.25).astype(bool)
+    exact = kept(world, np.floor(world.min(axis=0)))
+    cm = np.round(world, 2)
+    # the same cm-grid coordinates seen from two local origins: the same points
+    np.testing.assert_array_equal(kept(cm, np.floor(cm.min(axis=0))), kept(cm, np.floor(cm.min(axis=0)) - [300, 20, 7]))
+    # a 1 cm delivery keeps the points the exact coordinates keep, but for those within a quarter
+    # millimetre of a cell boundary; a 1 mm delivery those within half a millimetre
+    assert np.mean(kept(cm, np.floor(cm.min(axis=0))) == exact) > 0.97
+    mm = np.round(world, 3)
+    assert np.mean(kept(mm, np.floor(mm.min(axis=0))) == exact) > 0.97

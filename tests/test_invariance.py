@@ -47,14 +47,15 @@ def scenes():
     return {arch: synthetic.generate("uav-road", n, seed=SEED) for arch, n in SCENE.items()}
 
 
-# measured on this scene (CPU; Vulkan alike): in memory vs 1 mm LAZ 99.17 %, 1 cm 99.05 %,
-# shuffled 96.17 %, half density 98.33 % of the labels agree: one sidewalk piece of ~1,700
-# points near a crossing flips between road and not road in the kerb-graph cut. Not yet the
-# >= 99.5 % the road issue asks; the 8-bit colour delivery agrees exactly.
+# measured on this scene (CPU, road_uav.yaml with the hashed R1 pattern and the canonical point
+# order): in memory vs 1 mm LAZ 98.91 %, 1 cm 98.85 %, half density 93.72 % of the labels agree
+# (seed 5: 99.20 / 98.98 / 98.84 %): pieces of sidewalk or shadowed lot flip between road and not
+# road in the kerb-graph cut. Not yet the >= 99.5 % the road issue asks; shuffled points and 8-bit
+# colour give the same labels exactly.
 KNIFE_EDGE = pytest.mark.xfail(reason="the kerb-graph cut flips a sidewalk piece near a crossing "
                                "(see the comment above)", strict=False)
 VARIANTS = [pytest.param("laz_1mm", marks=KNIFE_EDGE), pytest.param("laz_1cm", marks=KNIFE_EDGE),
-            "colour_8bit", pytest.param("shuffled", marks=KNIFE_EDGE), pytest.param("thinned", marks=KNIFE_EDGE)]
+            "colour_8bit", "shuffled", pytest.param("thinned", marks=KNIFE_EDGE)]
 
 
 VULKAN_VARIANTS = [v for v in VARIANTS if getattr(v, "values", (v,))[0] in ("laz_1cm", "colour_8bit", "shuffled")]

@@ -26,10 +26,15 @@ class UniformOptions(StageOptions):
     target_density: float | None = Field(None, gt=0, description="keep this many points per m2 of "
                                          "occupied plan area (the survey's, see roadx_ti.estimates); "
                                          "sparser input is kept whole")
-    pattern: Literal["stride", "nested"] = Field(
+    pattern: Literal["stride", "nested", "hashed"] = Field(
         "stride", description="stride: point j of the output is input point floor(j n / m) (METHODS.md "
         "R1); nested: point i is kept when frac(0.618.. i) < ratio, so that a slightly different "
-        "ratio keeps nearly the same points (kernels/downsample.py)")
+        "ratio keeps nearly the same points; hashed: a point is kept when a hash of its coordinates "
+        "(in cells of `hash_cell`) is below the ratio: nested too, and the same points whatever "
+        "their order or tiling (kernels/downsample.py)")
+    hash_cell: float = Field(0.01, gt=0, description="m: coordinate quantum of the hashed pattern; cell "
+                             "boundaries sit a quarter millimetre off the half-cell so that deliveries at "
+                             "1 cm and at 1 mm keep nearly all the same points")
 
     @model_validator(mode="after")
     def _one_of(self):
@@ -43,7 +48,7 @@ class UniformDownsample(Stage):
     Options = UniformOptions
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
-        from roadx_ti.kernels.downsample import nested_sample, uniform_sample
+        from roadx_ti.kernels.downsample import hashed_sample, nested_sample, uniform_sample
 
         o = self.options
         ratio = o.ratio
@@ -61,6 +66,9 @@ class UniformDownsample(Stage):
         info = {"ratio": round(min(target, n) / max(n, 1), 5)}
 
         def sample(xyz):
+            if o.pattern == "hashed":
+                return np.flatnonzero(hashed_sample(coordinate_cells(xyz, cloud.origin, o.hash_cell),
+                                                    min(target, n) / max(n, 1)))
             if o.pattern == "nested":
                 return np.flatnonzero(nested_sample(len(xyz), min(target, n) / max(n, 1)))
             return uniform_sample(xyz, min(target, n))[0]
@@ -71,6 +79,19 @@ class UniformDownsample(Stage):
         keep[isolated] = True
         return StageResult(keep=keep, mode="subsample", info={"target_points": int(keep.sum()),
                                                               "isolated": int(isolated.sum()), **info})
+
+
+HASH_OFFSET = 0.00025   # m: boundaries this far below each half cell, off any 1 mm or 1 cm grid
+
+
+def coordinate_cells(xyz: np.ndarray, origin: np.ndarray, cell: float) -> np.ndarray:
+    """(n, 3) uint32: the low 32 bits of each world coordinate's cell number, cells of ``cell`` m
+    centred on its multiples (boundaries HASH_OFFSET below the half cell): float64 world
+    coordinates from the float32 local ones, whose error (< 0.1 mm within 1 km of the origin)
+    stays inside the offset for coordinates delivered on a 1 mm or coarser grid."""
+    world = np.asarray(xyz, np.float64) + np.asarray(origin, np.float64)
+    number = np.floor(world / cell + (0.5 + HASH_OFFSET / cell))
+    return (number.astype(np.int64) & 0xFFFFFFFF).astype(np.uint32)
 
 
 class VoxelOptions(StageOptions):

@@ -1,0 +1,63 @@
+"""The canonical point order the pipelines run in, so that results do not depend on the order in
+which a file delivers its points.
+
+Points are sorted by plan block of BLOCK m (neighbours stay close in memory for the kernels), then
+by x, y and z, then by their attributes; only points equal in all of these keep their input order
+among themselves, and they are interchangeable.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+BLOCK = 2.0      # m
+
+
+def _sortable(values: np.ndarray) -> np.ndarray:
+    """float32 -> uint32 whose unsigned order is the float order."""
+    bits = np.ascontiguousarray(values, np.float32).view(np.uint32)
+    return bits ^ np.where(bits & np.uint32(0x80000000), np.uint32(0xFFFFFFFF), np.uint32(0x80000000))
+
+
+def canonical_order(cloud) -> np.ndarray | None:
+    """int64 permutation putting ``cloud``'s points in canonical order; None when they already are."""
+    n = cloud.n
+    if n < 2:
+        return None
+    xyz = cloud.xyz
+    cell = np.floor(xyz[:, :2].astype(np.float64) / BLOCK).astype(np.int64)
+    cell -= cell.min(axis=0)
+    block = cell[:, 0] * (int(cell[:, 1].max()) + 1) + cell[:, 1]
+    x = _sortable(xyz[:, 0])
+    if int(block.max()) < 2**32:
+        # one 64-bit key (block, x): one sort, then only the ties are sorted further
+        key = (block.astype(np.uint64) << np.uint64(32)) | x.astype(np.uint64)
+        order = np.argsort(key, kind="stable")
+        sorted_key = key[order]
+        tie = sorted_key[1:] == sorted_key[:-1]
+    else:   # blocks beyond 32 bits (points very far apart): sort on every key at once
+        order = np.lexsort((x, block))
+        tie = (block[order][1:] == block[order][:-1]) & (x[order][1:] == x[order][:-1])
+    if tie.any():
+        in_tie = np.zeros(n, bool)
+        in_tie[1:] |= tie
+        in_tie[:-1] |= tie
+        group = np.cumsum(np.concatenate([[True], ~tie]))[in_tie]
+        members = order[in_tie]
+        keys = [a[members] for a in _attribute_keys(cloud)]
+        keys += [_sortable(xyz[members, 2]), _sortable(xyz[members, 1]), group]
+        order[in_tie] = members[np.lexsort(keys)]
+    if (order == np.arange(n)).all():
+        return None
+    return order
+
+
+def _attribute_keys(cloud):
+    """Per-point attribute columns, least significant first."""
+    keys = []
+    for a in (cloud.returns, cloud.rgb):
+        if a is not None:
+            keys += [a[:, c] for c in range(a.shape[1] - 1, -1, -1)]
+    for a in (cloud.classification, cloud.intensity):
+        if a is not None:
+            keys.append(a)
+    return keys
