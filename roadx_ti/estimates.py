@@ -1,7 +1,8 @@
 """Survey-wide estimates that ``auto`` stage parameters are derived from (METHODS.md, Adaptivity).
 
-Measured once on the whole input (a tiled run measures a spatially uniform sample of the whole
-catalog and hands the same values to every tile), logged, and written to the summary JSON:
+Measured once on the whole input (a tiled run streams the whole catalog once: the occupied area of
+all its points and a spatially uniform sample for the rest, and hands the same values to every
+tile), logged, and written to the summary JSON:
 
 - ``plan_area_m2`` / ``density_per_m2``: occupied plan area (cells of ``AREA_CELL`` m holding a
   point) and points per m2 of it, never the bounding box (stray points far away do not count);
@@ -88,50 +89,60 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     return out
 
 
-def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, runs_per_file: int = 64) -> dict:
-    """Survey-wide estimates of a catalog of files (roadx_ti.tiling.catalog) before tiling: a
-    sample of about ``sample_points`` points spread over every file (runs of consecutive points
-    at evenly spaced places of each file: exports are written tile by tile or line by line, so
-    the runs cover the whole area); the plan area is the occupied cells of the sample at a cell
-    holding about five sample points."""
+def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, chunk_points: int = 1_000_000) -> dict:
+    """Survey-wide estimates of a catalog of files (roadx_ti.tiling.catalog) before tiling, equal
+    in kind to ``measure`` on the whole survey in memory: every file is streamed once in chunks;
+    the plan area is the occupied AREA_CELL cells of all its points, and the other estimates come
+    from a spatially uniform sample of about ``sample_points`` points (a point is drawn by a hash
+    of its coordinates: the same sample whatever the files' point order or chunking; runs of
+    consecutive points are no such sample: exports written object by object or line by line
+    gave a third of the true area)."""
     import laspy
 
     from roadx_ti import io
+    from roadx_ti.kernels.downsample import hashed_sample
+    from roadx_ti.stages.downsample import coordinate_cells
 
     total = sum(f.count for f in files)
     if total == 0:
         return {"points": 0, "plan_area_m2": 0.0, "density_per_m2": 0.0}
-    pieces = []
+    read_origin = np.asarray(read_origin, np.float64)
+    ratio = min(1.0, sample_points / total)
+    cells, xyz_parts, rgb_parts = [], [], []
+
+    def take(world, rgb):
+        local = (world - read_origin).astype(np.float32)
+        cells.append(np.unique(_cell_keys(world[:, :2], AREA_CELL)))
+        pick = hashed_sample(coordinate_cells(local, read_origin, 0.01), ratio).astype(bool)
+        xyz_parts.append(local[pick])
+        rgb_parts.append(None if rgb is None else rgb[pick])
     for f in files:
-        want = int(np.ceil(sample_points * f.count / total))
-        if not want:
-            continue
         if f.path.lower().endswith((".las", ".laz")) and not f.path.lower().endswith(".copc.laz"):
-            runs = max(1, min(runs_per_file, want // 500))
-            per_run = max(1, want // runs)
-            starts = np.linspace(0, max(f.count - per_run, 0), runs).astype(np.int64)
-            xyz, rgb = [], []
             with laspy.open(f.path) as reader:
-                for start in starts:
-                    reader.seek(int(start))
-                    record = reader.read_points(per_run)
-                    xyz.append(np.column_stack([np.asarray(record.x), np.asarray(record.y), np.asarray(record.z)]))
-                    if "red" in record.point_format.dimension_names:
-                        rgb.append(np.column_stack([np.asarray(record[c]) for c in ("red", "green", "blue")]))
-            world = np.concatenate(xyz).astype(np.float64)
-            colour = np.concatenate(rgb).astype(np.uint16) if rgb and np.concatenate(rgb).any() else None
-            pieces.append(Cloud(xyz=(world - read_origin).astype(np.float32), origin=read_origin, rgb=colour,
-                                source=f.path))
+                colour = "red" in reader.header.point_format.dimension_names
+                for record in reader.chunk_iterator(chunk_points):
+                    world = np.column_stack([np.asarray(record.x), np.asarray(record.y),
+                                             np.asarray(record.z)]).astype(np.float64)
+                    rgb = np.column_stack([np.asarray(record[c]) for c in ("red", "green", "blue")]).astype(
+                        np.uint16) if colour else None
+                    take(world, rgb)
         else:     # COPC (its chunks are not seekable by point) and the other formats: read whole
             cloud = io.read(f.path, origin=read_origin)
-            pieces.append(cloud.subset(uniform_sample(cloud.n, want)))
-    read_origin = np.asarray(read_origin, np.float64)
-    sample = Cloud(xyz=np.concatenate([p.xyz for p in pieces]), origin=read_origin,
-                   rgb=np.concatenate([p.rgb for p in pieces]) if all(p.rgb is not None for p in pieces) else None)
-    # occupied area at a cell holding about five sample points on average
-    cell = max(AREA_CELL, float(np.sqrt(5.0 * occupied_area(sample.xyz[:, :2], 4.0) / max(sample.n, 1))))
-    area = occupied_area(sample.xyz[:, :2], cell)
+            take(cloud.world_xyz(), cloud.rgb)
+    occupied = np.unique(np.concatenate(cells))
+    area = float(len(occupied)) * AREA_CELL * AREA_CELL
+    rgb = None
+    if all(r is not None for r in rgb_parts):
+        rgb = np.concatenate(rgb_parts)
+        rgb = rgb if rgb.any() else None
+    sample = Cloud(xyz=np.concatenate(xyz_parts), origin=read_origin, rgb=rgb)
     out = measure(sample, survey_points=total, area=area)
     out["sample_points"] = int(sample.n)
-    out["area_cell_m"] = round(cell, 2)
+    out["area_cell_m"] = AREA_CELL
     return out
+
+
+def _cell_keys(xy: np.ndarray, cell: float) -> np.ndarray:
+    """int64 key of each point's plan cell in world coordinates (any two files agree)."""
+    key = np.floor(np.asarray(xy, np.float64) / cell).astype(np.int64)
+    return key[:, 0] * (1 << 32) + (key[:, 1] & 0xFFFFFFFF)
