@@ -16,7 +16,7 @@ delivery keeps the same points; the host chooses the quantisation, roadx_ti.stag
 import numpy as np
 from .taichi_compat import ti
 
-from .common import as_ndarray, is_ndarray, like_input, ndarray
+from .common import is_ndarray, ndarray
 
 
 BLOCK = 1024  # outputs per thread: one 64-bit division per block, then exact integer steps

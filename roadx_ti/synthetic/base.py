@@ -119,6 +119,36 @@ def shadow_height(top, cell, sun_azimuth, sun_tan_elev, pool=1):
     return shadow
 
 
+def top_surface(ras, ground, box_sets, crown_sets):
+    """Highest surface per cell of raster ``ras``: the ``ground`` heights raised by the roofs of
+    each box set (buildings, cars; roof_height over the footprint and a 0.4 m margin) and by the
+    ellipsoid caps of each crown set (trees, bushes: centre cx, cy, radius R, cap centre cz and
+    half height rz). The input to shadow_height."""
+    top = ground
+    for boxes in box_sets:
+        for i in range(boxes.n):
+            b = {k: np.asarray(getattr(boxes, k)[i]) for k in ("cx", "cy", "hx", "hy", "ang", "eave",
+                                                               "ridge", "roof")}
+            rad = math.hypot(b["hx"], b["hy"]) + 0.5
+            w = ras.window(b["cx"] - rad, b["cy"] - rad, b["cx"] + rad, b["cy"] + rad)
+            if w is None:
+                continue
+            lx, ly = to_local(ras.xc[w], ras.yc[w], F32(b["cx"]), F32(b["cy"]), b["ang"])
+            inside = (np.abs(lx) <= b["hx"] + 0.4) & (np.abs(ly) <= b["hy"] + 0.4)
+            h = roof_height(lx, ly, {k: F32(v) for k, v in b.items()})
+            top[w] = np.where(inside, np.maximum(top[w], h), top[w])
+    for t in crown_sets:
+        for i in range(t.n):
+            cx, cy, R, cz, rz = t.cx[i], t.cy[i], t.R[i], t.cz[i], t.rz[i]
+            w = ras.window(cx - R, cy - R, cx + R, cy + R)
+            if w is None:
+                continue
+            q = 1 - ((ras.xc[w] - cx) ** 2 + (ras.yc[w] - cy) ** 2) / R ** 2
+            h = np.where(q > 0, cz + rz * np.sqrt(np.maximum(q, 0)), -np.inf).astype(F32)
+            top[w] = np.maximum(top[w], h)
+    return top
+
+
 class Boxes:
     """Struct of arrays for rotated rectangles (centre, half sizes, angle) and their attributes."""
 

@@ -22,10 +22,9 @@ from roadx_ti.synthetic.base import (
     integer_counts,
     noisy_colour,
     repeat_index,
-    roof_height,
     shadow_height,
     smoothstep,
-    to_local,
+    top_surface,
 )
 
 _WALL_COLOURS = np.array([[205, 190, 165], [222, 216, 204], [150, 85, 65], [160, 158, 152],
@@ -316,28 +315,8 @@ class UavRoadV1Scene(Scene):
     # ---------------------------------------------------------------- shadows and density
     def _build_shadow_raster(self):
         ras = Raster(self.side, 0.5)
-        top = self._ground(ras.xc.ravel(), ras.yc.ravel(), colour=False).reshape(ras.xc.shape)
-        for boxes in (self.buildings, self.cars):
-            for i in range(boxes.n):
-                b = {k: np.asarray(getattr(boxes, k)[i]) for k in ("cx", "cy", "hx", "hy", "ang", "eave",
-                                                                   "ridge", "roof")}
-                rad = math.hypot(b["hx"], b["hy"]) + 0.5
-                w = ras.window(b["cx"] - rad, b["cy"] - rad, b["cx"] + rad, b["cy"] + rad)
-                if w is None:
-                    continue
-                lx, ly = to_local(ras.xc[w], ras.yc[w], F32(b["cx"]), F32(b["cy"]), b["ang"])
-                inside = (np.abs(lx) <= b["hx"] + 0.4) & (np.abs(ly) <= b["hy"] + 0.4)
-                h = roof_height(lx, ly, {k: F32(v) for k, v in b.items()})
-                top[w] = np.where(inside, np.maximum(top[w], h), top[w])
-        for t in (self.trees, self.bushes):
-            for i in range(t.n):
-                cx, cy, R, cz, rz = t.cx[i], t.cy[i], t.R[i], t.cz[i], t.rz[i]
-                w = ras.window(cx - R, cy - R, cx + R, cy + R)
-                if w is None:
-                    continue
-                q = 1 - ((ras.xc[w] - cx) ** 2 + (ras.yc[w] - cy) ** 2) / R ** 2
-                h = np.where(q > 0, cz + rz * np.sqrt(np.maximum(q, 0)), -np.inf).astype(F32)
-                top[w] = np.maximum(top[w], h)
+        ground = self._ground(ras.xc.ravel(), ras.yc.ravel(), colour=False).reshape(ras.xc.shape)
+        top = top_surface(ras, ground, (self.buildings, self.cars), (self.trees, self.bushes))
         self.shadow_raster = ras
         self.shadow = shadow_height(top, ras.cell, self.sun_az, self.sun_tan, pool=max(1, round(0.5 / ras.cell)))
 
