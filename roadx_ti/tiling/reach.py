@@ -6,7 +6,6 @@ import math
 MIN_BUFFER = 5.0                 # m: even point-local stages need their neighbours
 CLOTH_SPAN = 30.0                # m: least cloth buffer (half the widest building it hangs over)
 
-
 STAGE_REACH_DOC = """Spatial reach of each stage (m), the default buffer is the largest:
 cloth_ground / cloth_smooth: the larger of 30 m and 15 x cloth_resolution (the cloth hangs over a
 building from the terrain around it: a building cut by the window's edge loses that support, so the

@@ -21,8 +21,6 @@ from roadx_ti.tiling.tile import TileResult
 log_default = logging.getLogger("roadx_ti")
 
 MODES = ("merged", "per-file")
-
-
 MIN_POINTS_PER_TILE = 1000      # a tile size giving (many) fewer points per tile is refused
 
 
