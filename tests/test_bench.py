@@ -12,6 +12,7 @@ import pytest
 from roadx_ti.config import parse_point_count
 
 from roadx_ti import bench
+from roadx_ti.bench import render
 
 REQUIRED = {"stage", "points", "backend", "impl", "median_s", "first_call_s", "peak_rss_mb", "mpts_per_s",
             "ratio", "status", "bytes_per_point", "threads"}
@@ -168,8 +169,8 @@ def test_a_later_run_replaces_the_rows_it_remeasured():
     page = bench.render_markdown([first, later])
     assert "## Run later" in page
     details = page[page.index("## Details"):]
-    section = details[details.index(f"### {bench._stage_label(row['stage'], row['variant'])}\n"):]
+    section = details[details.index(f"### {render._stage_label(row['stage'], row['variant'])}\n"):]
     section = section.split("\n### ")[0]
-    prefix = f"| {bench._fmt_points(row['points'])} | {row['backend']} | roadx_ti |"
+    prefix = f"| {render._fmt_points(row['points'])} | {row['backend']} | roadx_ti |"
     mine = [line for line in section.splitlines() if line.startswith(prefix)]
     assert len(mine) == 1 and "| 123 |" in mine[0] and "0.00789" in mine[0]

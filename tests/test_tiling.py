@@ -42,12 +42,12 @@ def test_every_point_has_exactly_one_core_and_windows_hold_their_neighbours():
     x, y = x[(x <= 1050) | (y <= 2031)], y[(x <= 1050) | (y <= 2031)]
     owners = np.zeros(len(x), int)
     for t in plan.tiles:           # brute force over the half-open cores
-        owners += tiling._inside(x, y, t.core)
+        owners += tiling.tile._inside(x, y, t.core)
     assert np.all(owners == 1)
     index = plan.tile_index(x, y)
     assert np.all(index >= 0)
     for t in plan.tiles:
-        assert np.array_equal(index == t.index, tiling._inside(x, y, t.core))
+        assert np.array_equal(index == t.index, tiling.tile._inside(x, y, t.core))
         assert t.window == (t.core[0] - 2.5, t.core[1] - 2.5, t.core[2] + 2.5, t.core[3] + 2.5)
         near = {u.index for u in plan.tiles if u is not t and u.core[0] < t.window[2] and u.core[2] > t.window[0]
                 and u.core[1] < t.window[3] and u.core[3] > t.window[1]}
@@ -252,7 +252,7 @@ def test_failed_tile_is_reported_by_its_bounds_and_nothing_is_written(shared_dat
             raise RuntimeError("disk on fire")
         return real(job)
 
-    monkeypatch.setattr(tiling, "run_tile", flaky)
+    monkeypatch.setattr(tiling.executors, "run_tile", flaky)   # run_in_process's
     out = tmp_path / "out.laz"
     with pytest.raises(tiling.TileError, match=r"tile \(\d+, \d+\) with core bounds \(770[\d.]+, 6277[\d.]+, .*disk on fire"):
         tiling.run_catalog(cfg, [shared_data / "tiles"], out, tile_size=50.0, progress=False)

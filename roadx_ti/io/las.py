@@ -16,6 +16,7 @@ from __future__ import annotations
 import copy
 import logging
 import re
+from pathlib import Path
 
 import laspy
 import numpy as np
@@ -487,6 +488,49 @@ def check_written(path, tmp, source="") -> None:
 
 
 # ------------------------------------------------------------------------------- header look-ups
+
+def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_POINTS, on_file=None,
+                     mismatch_hint: str = "") -> int:
+    """Stream the point records of the LAS/LAZ files ``sources`` (in order, ``chunk_points`` at a
+    time) into one LAS/LAZ ``path`` (LAZ when it ends with .laz), written atomically: every record
+    bit for bit as read but its classification and the extra dimensions ``labels`` gives; the
+    header is the first source's with those dimensions. Returns the number of points written.
+
+    ``labels(i, chunk)`` -> (classification, extra_dims, subset) of a chunk (laspy point record) of
+    ``sources[i]``, called in file order; subset None keeps every point of the chunk. ``empty`` is
+    that triple for no points (the dtypes of its arrays shape the header). ``on_file(i, seen)`` is
+    called when ``sources[i]`` has been read, with its number of points. A source whose point format
+    cannot join the first's raises InputError (ending with ``mismatch_hint``)."""
+    written = 0
+    with atomic_output(path) as tmp:
+        writer = None
+        try:
+            for i, source in enumerate(sources):
+                seen = 0
+                with laspy.open(source) as reader:
+                    header = copy.deepcopy(reader.header)
+                    if writer is None:    # the first file's header, with the result dimensions
+                        none = laspy.ScaleAwarePointRecord.zeros(0, header=header)
+                        first = _las_from_record(path, laspy.LasData(header, none), 0, *empty)
+                        writer = laspy.open(tmp, mode="w", header=first.header,
+                                            do_compress=Path(path).suffix.lower() == ".laz")
+                    for chunk in reader.chunk_iterator(chunk_points):
+                        seen += len(chunk)
+                        las = _las_from_record(path, laspy.LasData(header, chunk), len(chunk), *labels(i, chunk))
+                        try:
+                            writer.write_points(las.points)
+                        except laspy.errors.LaspyException as exc:
+                            raise InputError(f"{source}: cannot be merged with {sources[0]} ({exc}: point "
+                                             f"formats differ){mismatch_hint}") from None
+                        written += len(las.points)
+                if on_file is not None:
+                    on_file(i, seen)
+        finally:
+            if writer is not None:
+                writer.close()
+        check_written(path, tmp)
+    return written
+
 
 def read_header_las(path):
     """(point count, (xmin, ymin, xmax, ymax), (zmin, zmax)) from the header alone."""

@@ -1,0 +1,163 @@
+"""After the tiles: segments cut by core borders get one id, then every input file is streamed again
+and each point takes its labels from its core tile, in file order."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from roadx_ti.tiling.catalogs import CatalogFile
+from roadx_ti.tiling.errors import TileError
+from roadx_ti.tiling.plan import TilePlan
+from roadx_ti.tiling.tile import _world_xy, concat_clouds
+
+MERGE_CHUNK_POINTS = 1_000_000
+
+
+def reconcile_segments(plan: TilePlan, results: dict) -> dict:
+    """Give segments cut by core borders one id: union-find over (tile, local segment) nodes that
+    share a point (labelled in both tiles), then compact global ids in tile order. Rewrites the
+    parts' segment ids in place; returns counts for the summary."""
+    base, total = {}, 0
+    for t in range(len(plan.tiles)):
+        base[t] = total
+        total += results[t].segments
+    parent = np.arange(total, dtype=np.int64)
+
+    def find(a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    links = 0
+    for t, res in results.items():
+        for u, mine in res.buffer_in.items():
+            other = results[u].core_in.get(t)
+            if other is None:       # the neighbour found no segments at all
+                continue
+            if len(other) != len(mine):
+                raise TileError(f"tiles {t} and {u} disagree on the points they share "
+                                f"({len(mine)} vs {len(other)}); no output was written")
+            both = (mine >= 0) & (other >= 0)
+            pairs = np.unique(np.column_stack([base[t] + mine[both], base[u] + other[both]]), axis=0)
+            for a, b in pairs:
+                ra, rb = find(a), find(b)
+                if ra != rb:
+                    parent[max(ra, rb)] = min(ra, rb)
+                    links += 1
+    global_id = {}
+    for t in range(len(plan.tiles)):
+        res = results[t]
+        if not res.segments:
+            continue
+        local_to_global = np.full(res.segments, -1, np.int32)
+        used = np.unique(np.concatenate([p.segment_id for p in res.parts.values()] or [np.zeros(0, np.int32)]))
+        for s in used[used >= 0]:
+            root = find(base[t] + int(s))
+            local_to_global[s] = global_id.setdefault(root, len(global_id))
+        for part in res.parts.values():
+            seg = part.segment_id
+            part.segment_id = np.where(seg >= 0, local_to_global[np.maximum(seg, 0)], -1).astype(np.int32)
+        res.buffer_in, res.core_in = {}, {}
+    return {"local_segments": total, "merges": links, "segments": len(global_id)}
+
+
+class _Merge:
+    """Hands out each input point's labels from its core tile, in file order, and keeps counts."""
+
+    def __init__(self, plan: TilePlan, results: dict, files: list[CatalogFile], truth_classes, target: int):
+        self.plan, self.results, self.files = plan, results, files
+        self.cursor = {}
+        self.truth_classes, self.target = truth_classes, target
+        self.class_counts = np.zeros(256, np.int64)
+        self.truth, self.pred = [], []
+        self.written = 0
+
+    def labels(self, k: int, x: np.ndarray, y: np.ndarray, input_classes=None):
+        n = len(x)
+        tiles = self.plan.tile_index(x, y)
+        if (tiles < 0).any():
+            raise TileError(f"{self.files[k].path}: {int((tiles < 0).sum())} points lie outside the "
+                            "header bounds, so no tile read them; fix the header (e.g. pdal translate)")
+        out = (np.empty(n, np.uint8), np.empty(n, np.uint8), np.empty(n, np.int32), np.empty(n, bool))
+        order = np.argsort(tiles, kind="stable")
+        starts = np.flatnonzero(np.r_[True, np.diff(tiles[order]) != 0])
+        ends = np.r_[starts[1:], n]
+        for s, e in zip(starts, ends):
+            t = int(tiles[order[s]])
+            part = self.results[t].parts.get(k)
+            c = self.cursor.get((t, k), 0)
+            if part is None or c + (e - s) > len(part.classification):
+                raise TileError(f"{self.files[k].path}: tile {t} returned fewer core points than the "
+                                "file holds in its core; no output was written")
+            idx = order[s:e]
+            for dst, src in zip(out, (part.classification, part.decided_by, part.segment_id, part.processed)):
+                dst[idx] = src[c:c + e - s]
+            self.cursor[(t, k)] = c + e - s
+        self.class_counts += np.bincount(out[0], minlength=256)
+        if input_classes is not None and self.truth_classes:
+            from roadx_ti.metrics import class_mask
+            self.truth.append(class_mask(input_classes, self.truth_classes))
+            self.pred.append(out[0] == self.target)
+        return out
+
+    def check_file(self, k: int, seen: int) -> None:
+        """Every point of file k was handed out exactly once and every core point returned used."""
+        if seen != self.files[k].count:
+            raise TileError(f"{self.files[k].path}: read {seen} points, the header says {self.files[k].count}")
+        for t, res in self.results.items():
+            part = res.parts.get(k)
+            if part is not None and self.cursor.get((t, k), 0) != len(part.classification):
+                raise TileError(f"{self.files[k].path}: tile {t} returned {len(part.classification)} core "
+                                f"points, the file has {self.cursor.get((t, k), 0)} there")
+
+
+def _is_las(path) -> bool:
+    return Path(path).suffix.lower() in (".las", ".laz")
+
+
+def _write_las_stream(out: Path, file_ids, merge: _Merge, processed_only: bool) -> int:
+    """Stream the files' points (their LAS records, bit-exact but classification and the result
+    dimensions) into one LAS/LAZ written atomically; returns the number of points written."""
+    from roadx_ti.io import las as io_las
+
+    def labels(i, chunk):
+        cls, dec, seg, proc = merge.labels(file_ids[i], np.asarray(chunk.x), np.asarray(chunk.y),
+                                           np.asarray(chunk.classification))
+        return cls, {"roadx_label": dec, "segment_id": seg}, proc if processed_only else None
+
+    empty = (np.zeros(0, np.uint8), {"roadx_label": np.zeros(0, np.uint8), "segment_id": np.zeros(0, np.int32)},
+             np.zeros(0, bool) if processed_only else None)
+    return io_las.write_las_stream(out, [merge.files[k].path for k in file_ids], labels, empty=empty,
+                                   chunk_points=MERGE_CHUNK_POINTS,
+                                   on_file=lambda i, seen: merge.check_file(file_ids[i], seen),
+                                   mismatch_hint="; use output.mode per-file")
+
+
+def _write_generic(out: Path, file_ids, merge: _Merge, processed_only: bool) -> int:
+    """Any other format: whole files in memory, written with io.write."""
+    from roadx_ti import io
+
+    clouds, labels = [], []
+    for k in file_ids:
+        cloud = io.read(merge.files[k].path, origin=merge.plan.read_origin)
+        x, y = _world_xy(cloud)
+        labels.append(merge.labels(k, x, y, cloud.classification))
+        merge.check_file(k, cloud.n)
+        clouds.append(cloud)
+    cloud = concat_clouds(clouds, merge.plan.read_origin)
+    cls, dec, seg, proc = (np.concatenate(parts) for parts in zip(*labels))
+    io.write(out, cloud, classification=cls, extra_dims={"roadx_label": dec, "segment_id": seg},
+             subset=proc if processed_only else None)
+    return int(proc.sum()) if processed_only else cloud.n
+
+
+def write_outputs(plan, results, files, outputs: list[tuple[Path, list[int]]], *, processed_only: bool,
+                  truth_classes, target: int) -> tuple[int, _Merge]:
+    merge = _Merge(plan, results, files, truth_classes, target)
+    written = 0
+    for out, file_ids in outputs:
+        stream = _is_las(out) and all(_is_las(files[k].path) for k in file_ids)
+        written += (_write_las_stream if stream else _write_generic)(out, file_ids, merge, processed_only)
+    return written, merge

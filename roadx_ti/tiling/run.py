@@ -1,0 +1,190 @@
+"""The entry point of a tiled run: catalog, plan, survey estimates, tiles on an executor, merge,
+summary."""
+from __future__ import annotations
+
+import logging
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from roadx_ti.tiling.catalogs import catalog
+from roadx_ti.tiling.cluster import _DaskSession
+from roadx_ti.tiling.executors import backend_ready, make_jobs, run_in_process, run_on_dask
+from roadx_ti.tiling.merge import reconcile_segments, write_outputs
+from roadx_ti.tiling.plan import Tile, default_tile_size, plan_tiles, scan_cells
+from roadx_ti.tiling.reach import default_buffer
+from roadx_ti.tiling.tile import TileResult
+
+log_default = logging.getLogger("roadx_ti")
+
+MODES = ("merged", "per-file")
+MIN_POINTS_PER_TILE = 1000      # a tile size giving (many) fewer points per tile is refused
+
+
+class _Progress:
+    """A tqdm bar on a terminal, log lines otherwise (nothing when disabled)."""
+
+    def __init__(self, total: int, enabled: bool, log):
+        self.total, self.enabled, self.log, self.count = total, enabled, log, 0
+        self.bar = None
+        if enabled and sys.stderr.isatty():
+            from tqdm import tqdm
+            self.bar = tqdm(total=total, unit="tile", file=sys.stderr, leave=False)
+
+    def step(self, tile: Tile, result: TileResult):
+        self.count += 1
+        if self.bar is not None:
+            self.bar.update(1)
+        elif self.enabled:
+            self.log.info("tile %d/%d (%d, %d): %d points read, %d core, %.2f s on %s", self.count,
+                          self.total, tile.col, tile.row, result.points_read, result.points_core,
+                          result.seconds, result.worker)
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
+def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, scheduler: str | None = None,
+                tile_size: float | None = None, buffer: float | None = None, output_mode: str = "merged",
+                progress: bool = True, log=None, summary_path=None) -> dict:
+    """Run ``cfg``'s pipeline over a catalog of files in tiles with buffers and write the result.
+
+    input_paths: files and/or folders (catalog order = input order). output_path: the merged
+    LAS/LAZ (output_mode 'merged'), or a folder receiving one file per input under the input's
+    name ('per-file'). workers: start a local Dask cluster of that many processes; scheduler:
+    'tcp://HOST:PORT' of an existing one; neither: tiles run one by one in this process.
+    tile_size (m): core tile edge (None: about TARGET_TILE_POINTS points per tile; inf: untiled);
+    buffer (m): None derives it from the stages' reach (stage_reach). The summary (returned and
+    written to summary_path, default '<output stem>.summary.json' or '<folder>/summary.json')
+    holds the plan, per-tile timings and counts. Raises TileError (nothing written) when a tile
+    fails after its retries."""
+    from roadx_ti import __version__, io, jsonio, pipelines
+    from roadx_ti.config import PIPELINE_TARGET
+
+    log = log or log_default
+    t_start = time.perf_counter()
+    if output_mode not in MODES:
+        raise ValueError(f"output mode must be one of {', '.join(MODES)}, got {output_mode!r}")
+    if workers is not None and scheduler:
+        raise ValueError("give workers (a local cluster) or scheduler (an existing one), not both")
+    if workers is not None and int(workers) < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    files = catalog(input_paths)
+    total_points = sum(f.count for f in files)
+    if total_points == 0:
+        raise io.InputError(f"the inputs hold no points: {', '.join(f.path for f in files)}")
+    stage_specs = cfg.stage_list() or pipelines.default_stage_specs(cfg.pipeline)
+    auto_buffer, reaches = default_buffer(stage_specs)
+    buffer = auto_buffer if buffer is None else float(buffer)
+    tile_size = default_tile_size(files) if tile_size is None else float(tile_size)
+    plan = plan_tiles(files, tile_size, buffer, scan=scan_cells)
+    if len(plan.tiles) > max(64, total_points // MIN_POINTS_PER_TILE):
+        raise ValueError(f"--tile-size {tile_size:g} gives {len(plan.tiles):,} tiles for {total_points:,} points, "
+                         f"fewer than {MIN_POINTS_PER_TILE} per tile (each tile reads its files): use a larger "
+                         f"tile size, e.g. {default_tile_size(files):g} m")
+
+    inputs = [f.path for f in files]
+    if output_mode == "merged":
+        out = Path(output_path)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        io.check_output_path(out, inputs)
+        outputs = [(out, list(range(len(files))))]
+        summary_path = Path(summary_path or out.with_suffix("").as_posix() + ".summary.json")
+    else:
+        folder = Path(output_path)
+        folder.mkdir(parents=True, exist_ok=True)
+        names = [Path(f.path).name for f in files]
+        if len(set(names)) != len(names):
+            raise io.InputError("per-file output needs distinct input file names; "
+                                f"{len(names) - len(set(names))} repeat")
+        outputs = [(folder / name, [k]) for k, name in enumerate(names)]
+        for o, _ in outputs:
+            io.check_output_path(o, inputs)
+        summary_path = Path(summary_path or folder / "summary.json")
+
+    log.info("%d file(s), %d points; %d tile(s) of %s m with a %.1f m buffer", len(files), total_points,
+             len(plan.tiles), "all" if not np.isfinite(plan.tile_size) else f"{plan.tile_size:g}", plan.buffer)
+    results: dict[int, TileResult] = {}
+    bar = _Progress(len(plan.tiles), progress, log)
+
+    def on_done(result: TileResult):
+        results[result.index] = result
+        bar.step(plan.tiles[result.index], result)
+
+    from roadx_ti.estimates import measure_catalog
+
+    t_est = time.perf_counter()
+    if not backend_ready():
+        from roadx_ti import backend
+        backend.init(cfg.backend, threads=cfg.threads)
+    survey = measure_catalog(files, plan.read_origin)
+    estimate_s = time.perf_counter() - t_est
+    log.info("survey estimates (%d sampled points) in %.2f s: %s", survey.get("sample_points", 0), estimate_s,
+             {k: v for k, v in survey.items() if k not in ("sample_points",)})
+    t_tiles = time.perf_counter()
+    session = None
+    try:
+        if workers is None and not scheduler:
+            executor, n_workers = "in-process", 1
+            jobs = make_jobs(plan, files, stage_specs, backend=cfg.backend, threads=cfg.threads, seed=cfg.seed,
+                             survey_estimates=survey)
+            run_in_process(jobs, on_done)
+        else:
+            session = _DaskSession(workers, scheduler, log, inputs=[os.path.abspath(f.path) for f in files],
+                                   connect_timeout=cfg.executor.connect_timeout,
+                                   worker_timeout=cfg.executor.worker_timeout)
+            executor, n_workers = session.kind, session.workers
+            # one Taichi runtime per worker process; CPU unless the config names a backend
+            threads = cfg.threads or (max(1, (os.cpu_count() or 1) // int(workers)) if workers else None)
+            jobs = make_jobs(plan, files, stage_specs, backend="cpu" if cfg.backend == "auto" else cfg.backend,
+                             threads=threads, seed=cfg.seed, survey_estimates=survey)
+            run_on_dask(session.client, jobs, on_done, in_flight=2 * n_workers)
+    finally:
+        bar.close()
+        if session is not None:
+            session.close()
+    tiles_s = time.perf_counter() - t_tiles
+
+    t_merge = time.perf_counter()
+    segments = reconcile_segments(plan, results)
+    target = PIPELINE_TARGET[cfg.pipeline]
+    written, merge = write_outputs(plan, results, files, outputs, processed_only=cfg.output.points == "processed",
+                                   truth_classes=cfg.truth_classes, target=target)
+    merge_s = time.perf_counter() - t_merge
+
+    summary = {
+        "roadx_ti": __version__, "pipeline": cfg.pipeline, "executor": executor, "workers": n_workers,
+        "scheduler": scheduler, "output_mode": output_mode,
+        "inputs": [{"path": f.path, "points": f.count, "bounds": list(f.bounds)} for f in files],
+        "outputs": [str(o) for o, _ in outputs], "points": total_points, "points_written": written,
+        "tiling": plan.describe() | {"buffer_from_stages": reaches},
+        "estimates": survey,
+        "segments": segments,
+        "target_class": target, "target_points": int(merge.class_counts[target]),
+        "class_counts": {str(c): int(v) for c, v in enumerate(merge.class_counts) if v},
+        "seconds": {"estimates": round(estimate_s, 4), "tiles": round(tiles_s, 4), "merge": round(merge_s, 4),
+                    "total": round(time.perf_counter() - t_start, 4),
+                    "tile_sum": round(sum(r.seconds for r in results.values()), 4)},
+        "tiles": [{"tile": [t.col, t.row], "core": list(t.core), "window": list(t.window),
+                   "files": [Path(files[k].path).name for k in t.files],
+                   "points_read": results[t.index].points_read, "points_core": results[t.index].points_core,
+                   "read_seconds": round(results[t.index].read_seconds, 4),
+                   "pipeline_seconds": round(results[t.index].pipeline_seconds, 4),
+                   "seconds": round(results[t.index].seconds, 4), "worker": results[t.index].worker}
+                  for t in plan.tiles],
+    }
+    truth = np.concatenate(merge.truth) if merge.truth else None
+    if truth is not None and truth.any():
+        from roadx_ti.metrics import scores
+        summary["truth_classes"] = cfg.truth_classes
+        summary["accuracy"] = scores(truth, np.concatenate(merge.pred))
+    summary["summary_path"] = str(summary_path)
+    jsonio.write(summary_path, summary)
+    log.info("wrote %s (%d points, %d tiles, %s) in %.2f s", ", ".join(summary["outputs"][:3])
+             + (" ..." if len(outputs) > 3 else ""), written, len(plan.tiles), executor,
+             time.perf_counter() - t_start)
+    return summary
