@@ -16,9 +16,10 @@ the mean kappa from 0.82 to 0.88, five tiles up and one 0.949 -> 0.941; benchmar
 Isolated points (roadx_ti.isolation: a part of at most k points, more than 100 m from the rest)
 join no growth edge: their k neighbours lie across the gap, so neither their normal nor their edges
 say anything about a roof (a cloud without them grows exactly as before).
-Writes point_data 'roof_segment' (int32, compact ids, -1 = none) and, with the colour rule or
-returns on, 'vegetation' (uint8: COM > com_threshold, or such a foliage return) for roof_filter's
-annex and footprint tests.
+Writes point_data 'roof_segment' (int32, compact ids, -1 = none), 'edge_may_join' (uint8: no
+vegetation cue of this stage, colour or foliage return, and not isolated: the points roof_filter's
+edge completion may add) and, with the colour rule or returns on, 'vegetation' (uint8: COM >
+com_threshold, or such a foliage return) for roof_filter's annex and footprint tests.
 """
 from __future__ import annotations
 
@@ -110,7 +111,15 @@ class RoofGrowing(Stage):
                 "color_rule": bool(colour)}
         if vegetation_points is not None:
             info["vegetation_coloured"] = vegetation_points
-        point_data = {"roof_segment": segment}
+        # roof_filter's edge completion: points no vegetation cue or isolation keeps off a roof
+        may_join = np.ones(n, bool)
+        if "vegetation" in edge_colour:
+            may_join &= np.asarray(edge_colour["vegetation"]) == 0
+        may_join_all = may_join & (isolated is None or ~isolated)
+        if active is not None:
+            may_join &= np.asarray(active) != 0
+        point_data = {"roof_segment": segment, "edge_may_join": may_join.astype(np.uint8),
+                      "edge_may_join_all": np.asarray(may_join_all, np.uint8)}
         if colour:
             point_data["vegetation"] = np.asarray(colour["vegetation"], np.uint8)
         if foliage_returns is not None:
@@ -119,3 +128,4 @@ class RoofGrowing(Stage):
                                         foliage_returns).astype(np.uint8)
             info["foliage_returns"] = int(np.count_nonzero(foliage_returns))
         return StageResult(point_data=point_data, segment_id=segment, info=info)
+

@@ -86,6 +86,7 @@ class RoofSeeds(Stage):
             found = _seeds(cloud.xyz[rest], k, o) if len(rest) > k else None
             indices, features, masks = _with_isolated(n, k, rest, found)
         ctx.facts["knn"] = indices
+        ctx.facts["roof_curvature_max"] = o.curvature_max
         seed = np.asarray(masks["seed"], np.uint8)
         info = {"k": k, "seeds": int(seed.sum()),
                 "removed_by": {name: int(n - int(np.count_nonzero(masks[name])))
