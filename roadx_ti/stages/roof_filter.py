@@ -174,12 +174,31 @@ def annex_segments(segment: np.ndarray, xy: np.ndarray, kept: np.ndarray, candid
     return touching & candidate
 
 
-def roof_plane_noise(xyz, knn, segment, normal, curvature, planar_max: float, min_pairs: int = 100):
+NOISE_SAMPLE = 20_000   # planar roof points the roofs' plane noise is measured on (at most)
+
+
+def coordinate_hash(xyz: np.ndarray) -> np.ndarray:
+    """uint64 per point from the bits of its float32 coordinates: a sample drawn by it does not
+    depend on the points' order."""
+    bits = np.ascontiguousarray(xyz, np.float32).view(np.uint32).astype(np.uint64)
+    h = bits[:, 0] * np.uint64(0x9E3779B97F4A7C15) ^ bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F) \
+        ^ bits[:, 2] * np.uint64(0x165667B19E3779F9)
+    h ^= h >> np.uint64(29)
+    h *= np.uint64(0xBF58476D1CE4E5B9)
+    return h ^ (h >> np.uint64(32))
+
+
+def roof_plane_noise(xyz, knn, segment, normal, curvature, planar_max: float, min_pairs: int = 100,
+                     sample: int = NOISE_SAMPLE):
     """Noise of a point pair on the roofs (m): 1.4826 x the median distance of the same-segment kNN
     neighbours of planar roof points (curvature < planar_max) to the plane of the point (its
-    position and normal). None with fewer than ``min_pairs`` such pairs. float64 arithmetic."""
+    position and normal), on about ``sample`` of those points drawn by coordinate_hash. None with
+    fewer than ``min_pairs`` such pairs. float64 arithmetic."""
     knn = np.asarray(knn)
     rows = np.flatnonzero((segment >= 0) & (np.asarray(curvature) < planar_max))
+    if len(rows) > sample:
+        keep = (coordinate_hash(np.asarray(xyz)[rows]) >> np.uint64(40)) < np.uint64((sample << 24) // len(rows))
+        rows = rows[keep]
     if not len(rows):
         return None
     nb = knn[rows]
