@@ -6,6 +6,9 @@ catalog and hands the same values to every tile), logged, and written to the sum
 - ``plan_area_m2`` / ``density_per_m2``: occupied plan area (cells of ``AREA_CELL`` m holding a
   point) and points per m2 of it, never the bounding box (stray points far away do not count);
 - ``point_spacing_m``: median distance to the nearest neighbour in plan, on a sample;
+- ``pulse_spacing_m`` (where the input has return numbers): the same over first returns only, the
+  spacing at which a surface seen from above (a roof) is sampled: vegetation's later returns make
+  ``point_spacing_m`` smaller than a roof's spacing on wooded ALS tiles;
 - ``height_noise_m``: robust spread of slope-corrected height differences between neighbours
   whose neighbourhoods are among the flatter half (1.4826 x median absolute difference /
   sqrt 2): the noise of one point on a smooth surface;
@@ -66,6 +69,11 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     flat = np.ascontiguousarray(np.column_stack([xyz[:, :2], np.zeros(len(xyz), np.float32)]))
     nn_plan = knn(flat, 1)[1][:, 0]
     out["point_spacing_m"] = round(float(np.median(nn_plan)) * np.sqrt(len(xyz) / total), 4)
+    if cloud.returns is not None and (cloud.returns[pick, 1] > 1).any():
+        first = np.flatnonzero(cloud.returns[pick, 0] <= 1)
+        if len(first) >= 8:
+            nn_first = knn(np.ascontiguousarray(flat[first]), 1)[1][:, 0]
+            out["pulse_spacing_m"] = round(float(np.median(nn_first)) * np.sqrt(len(xyz) / total), 4)
     gradient = coarse_gradient(xyz, 2.5)
     a = np.repeat(np.arange(len(xyz)), k)
     b = idx.reshape(-1)
@@ -110,24 +118,28 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
             runs = max(1, min(runs_per_file, want // 500))
             per_run = max(1, want // runs)
             starts = np.linspace(0, max(f.count - per_run, 0), runs).astype(np.int64)
-            xyz, rgb = [], []
+            xyz, rgb, returns = [], [], []
             with laspy.open(f.path) as reader:
                 for start in starts:
                     reader.seek(int(start))
                     record = reader.read_points(per_run)
                     xyz.append(np.column_stack([np.asarray(record.x), np.asarray(record.y), np.asarray(record.z)]))
+                    returns.append(np.column_stack([np.asarray(record.return_number),
+                                                    np.asarray(record.number_of_returns)]).astype(np.uint8))
                     if "red" in record.point_format.dimension_names:
                         rgb.append(np.column_stack([np.asarray(record[c]) for c in ("red", "green", "blue")]))
             world = np.concatenate(xyz).astype(np.float64)
             colour = np.concatenate(rgb).astype(np.uint16) if rgb and np.concatenate(rgb).any() else None
             pieces.append(Cloud(xyz=(world - read_origin).astype(np.float32), origin=read_origin, rgb=colour,
-                                source=f.path))
+                                returns=np.concatenate(returns), source=f.path))
         else:     # COPC (its chunks are not seekable by point) and the other formats: read whole
             cloud = io.read(f.path, origin=read_origin)
             pieces.append(cloud.subset(uniform_sample(cloud.n, want)))
     read_origin = np.asarray(read_origin, np.float64)
     sample = Cloud(xyz=np.concatenate([p.xyz for p in pieces]), origin=read_origin,
-                   rgb=np.concatenate([p.rgb for p in pieces]) if all(p.rgb is not None for p in pieces) else None)
+                   rgb=np.concatenate([p.rgb for p in pieces]) if all(p.rgb is not None for p in pieces) else None,
+                   returns=np.concatenate([p.returns for p in pieces]) if all(p.returns is not None for p in pieces)
+                   else None)
     # occupied area at a cell holding about five sample points on average
     cell = max(AREA_CELL, float(np.sqrt(5.0 * occupied_area(sample.xyz[:, :2], 4.0) / max(sample.n, 1))))
     area = occupied_area(sample.xyz[:, :2], cell)

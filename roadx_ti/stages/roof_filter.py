@@ -103,7 +103,9 @@ class RoofFilterOptions(StageOptions):
                                      "ground (m) join a footprint: low returns beside a wall are "
                                      "mostly ground and low plants the cloth left as non-ground")
     footprint_cell: float = Field(1.0, gt=0, description="grid cell of the roof footprints (m); "
-                                  "about 2-3 point spacings so a roof has no empty cells")
+                                  "about 2-3 point spacings so a roof has no empty cells (a cell of 5 "
+                                  "measured spacings on IGN tiles thinned to 3 points/m2, 1.45 m: "
+                                  "kappa 0.880 -> 0.847, more foliage inside footprints)")
     inside_reach: float = Field(3.0, ge=0, description="a point is inside a footprint when roof "
                                 "cells lie this close (m) in all four axis directions; covers "
                                 "holes left by roof units up to about 2 x inside_reach wide")
@@ -316,7 +318,7 @@ class RoofFilter(Stage):
         knn = ctx.facts.get("knn")
         if knn is None or len(knn) != cloud.n or "normal" not in ctx.point_data or "curvature" not in ctx.point_data:
             return segment, roof, None
-        spacing, source = estimate(ctx, "point_spacing_m"), "estimates"
+        spacing, source = estimate(ctx, "pulse_spacing_m") or estimate(ctx, "point_spacing_m"), "estimates"
         if not spacing:
             # the nearest of the k neighbours' distances, median, as the plan nearest-neighbour
             # distance of a uniform sample of that density (0.5 / sqrt(density))
