@@ -184,7 +184,7 @@ def evaluate(task: str, out: Path, points: int, rows=None) -> list[dict]:
                "seconds": round(seconds, 2), **metrics.scores(truth, predicted),
                "stages": [{k: s.get(k) for k in ("stage", "points_in", "points_out", "removed_target",
                                                   "removed_other", "unlabelled_target", "labelled_other",
-                                                  "seconds")} for s in result.stages],
+                                                  "seconds", "info")} for s in result.stages],
                "group": group, "estimates": result.estimates,
                "stage_estimates": {s["stage"]: s["info"]["estimates"] for s in result.stages
                                    if isinstance(s.get("info"), dict) and "estimates" in s["info"]}}
@@ -251,6 +251,19 @@ def render(task_results: dict, command: str) -> str:
                 lines.append(f"| {r['dataset']} | {e.get('density_per_m2', '')} | {e.get('height_noise_m', '')} | "
                              f"{e.get('colour_noise', '')} | {r6.get('point_spacing_m', '')} | "
                              f"{r6.get('height_noise_m', '')} | {r6.get('colour_noise', '')} |")
+        if task == "roof":
+            lines += ["", "Per dataset: the vegetation cue roof growing used (`rgb_com`: the patent's COM index on "
+                      "RGB, `ndvi`: NDVI where the file's NIR varies, `returns`: foliage returns), the spacing "
+                      "the `auto` parameters followed (first returns where the file has returns), r_max, "
+                      "and the points edge completion added:", "",
+                      "| dataset | vegetation cue | spacing m | r_max m | edge points added |", "|---|---|---:|---:|---:|"]
+            for r in rows:
+                info = {s["stage"]: s.get("info") or {} for s in r["stages"]}
+                e = r.get("estimates") or {}
+                edges = info.get("roof_filter", {}).get("edges") or {}
+                lines.append(f"| {r['dataset']} | {info.get('roof_growing', {}).get('vegetation_cue', '')} | "
+                             f"{e.get('pulse_spacing_m', e.get('point_spacing_m', ''))} | "
+                             f"{info.get('roof_seeds', {}).get('r_max', '')} | {edges.get('added_points', '')} |")
         lines += ["", "Per stage: target / non-target points each stage removed (a removed point is "
                   "labelled non-target; downsampling only skips points, which take their nearest "
                   "processed point's label); for a labelling stage also, in brackets, the target "

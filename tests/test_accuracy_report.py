@@ -31,3 +31,9 @@ def test_stage_counts_add_up_to_the_errors():
                                       "kappa": 0.9, "stages": result.stages}]}, "cmd")
     assert f"roof_filter 0 / 0 (missed {last['unlabelled_target']:,} / wrongly labelled {false:,})" in text
     assert f"cloth_ground {rows['cloth_ground']['removed_target']:,} / {rows['cloth_ground']['removed_other']:,}," in text
+    # the vegetation cue, r_max and edge completion per dataset (synthetic als-roof: RGB, no returns)
+    cue = rows["roof_growing"]["info"]["vegetation_cue"]
+    assert cue == "rgb_com"
+    r_max = rows["roof_seeds"]["info"]["r_max"]
+    added = rows["roof_filter"]["info"]["edges"]["added_points"]
+    assert f"| scene | {cue} | " in text and f" | {r_max} | {added} |" in text
