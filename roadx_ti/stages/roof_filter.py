@@ -29,8 +29,9 @@ Needs roof_growing before it (point_data 'roof_segment') and, for the height tes
   when a roof neighbour within edge_reach point spacings carries a plane (its own where it is
   planar, else its nearest planar roof neighbour's) the point lies on within edge_noise x sqrt 2
   x the height noise + edge_tilt x the distance from that plane's origin, at least
-  edge_min_height above the ground, and no vegetation cue (colour or foliage return, point_data
-  'edge_may_join' from roof_growing) keeps it off; joined points carry the plane on, so a chain
+  edge_min_height above the ground, and no vegetation cue keeps it off (colour, and with
+  edge_foliage_returns false also foliage returns: point_data 'edge_may_join' / 'edge_may_join_all'
+  from roof_growing; eaves split pulses, so by default returns do not keep a rim point off); joined points carry the plane on, so a chain
   of joins stays on one interior plane and does not creep down a wall (edge_rounds rounds). Only
   kept roofs grow (a plane patch in a tree that grew would pass the area test). Spacing: the
   survey estimate (roadx_ti.estimates); noise: the kept roofs' own plane noise (roof_plane_noise;
@@ -93,8 +94,10 @@ class RoofFilterOptions(StageOptions):
     edge_support: float = Field(0.4, ge=0, le=1, description="an edge point joins only when at least "
                                 "this fraction of its k neighbours lie on the roof's plane (unitless): "
                                 "an eave point has its roof side there, foliage beside a roof little")
-    edge_foliage_returns: bool = Field(False, description="foliage returns (roof_growing's returns "
-                                       "rule) may join by edge growth too: eave edges split pulses")
+    edge_foliage_returns: bool = Field(True, description="foliage returns (roof_growing's returns "
+                                       "rule: rough earlier returns of multi-return pulses) may join by "
+                                       "edge growth too: an eave splits the pulse (roof, then the ground "
+                                       "beside the wall), so a roof's rim is mostly such returns")
     edge_min_height: float = Field(1.0, description="edge points lower than this above the ground "
                                    "(m) never join: the ground and low plants beside a wall")
     attach_footprint: bool = Field(True, description="add walls, chimneys, roof units and roof "

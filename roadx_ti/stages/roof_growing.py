@@ -22,7 +22,7 @@ too. info 'vegetation_cue' says which cues ran: 'rgb_com', 'ndvi', 'returns' joi
 'none'.
 Writes point_data 'roof_segment' (int32, compact ids, -1 = none), 'edge_may_join' (uint8: no
 vegetation cue of this stage, colour or foliage return, and not isolated: the points roof_filter's
-edge completion may add) and, with the colour rule or returns on, 'vegetation' (uint8: COM >
+edge completion may add), 'edge_may_join_all' (the same without the returns rule) and, with the colour rule or returns on, 'vegetation' (uint8: COM >
 com_threshold, or such a foliage return) for roof_filter's annex and footprint tests.
 """
 from __future__ import annotations
@@ -139,7 +139,7 @@ class RoofGrowing(Stage):
         may_join = np.ones(n, bool)
         if "vegetation" in edge_colour:
             may_join &= np.asarray(edge_colour["vegetation"]) == 0
-        may_join_all = may_join & (isolated is None or ~isolated)
+        may_join_all = may_join if isolated is None else may_join & ~isolated   # foliage returns too
         if active is not None:
             may_join &= np.asarray(active) != 0
         point_data = {"roof_segment": segment, "edge_may_join": may_join.astype(np.uint8),
