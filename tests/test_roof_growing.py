@@ -590,6 +590,12 @@ def test_edge_growth_completes_eaves_without_walls_or_ground(ti_arch, spacing):
         segment = np.asarray(result.segment_id)
         on_roof = np.bincount(segment[(part == 0) & (segment >= 0)], minlength=segment.max() + 1)
         found[on] = np.isin(segment, np.flatnonzero(on_roof >= 0.05 * (part == 0).sum()))
+        # the points edge growth may add: without the returns rule (default) all but isolated
+        # ones; with it, not the crown's rough earlier returns
+        foliage = ctx.point_data["vegetation"] != 0
+        assert foliage[part == 3].mean() > 0.5
+        assert (ctx.point_data["edge_may_join_all"] != 0).all()
+        assert not (ctx.point_data["edge_may_join"][foliage] != 0).any()
         if on:
             edges = result.info["edges"]
             assert edges["spacing_source"] == "estimates"

@@ -139,7 +139,7 @@ class RoofGrowing(Stage):
         may_join = np.ones(n, bool)
         if "vegetation" in edge_colour:
             may_join &= np.asarray(edge_colour["vegetation"]) == 0
-        may_join_all = may_join if isolated is None else may_join & ~isolated   # foliage returns too
+        may_join_all = may_join.copy() if isolated is None else may_join & ~isolated   # returns too
         if active is not None:
             may_join &= np.asarray(active) != 0
         point_data = {"roof_segment": segment, "edge_may_join": may_join.astype(np.uint8),
