@@ -28,7 +28,7 @@ class RoofSeedsOptions(StageOptions):
     plane_coef: float = Field(0.8, ge=0.5, le=1.0, description="a candidate is planar when at least "
                               "ceil(plane_coef * k) of its k neighbours are candidates too")
     r_max: float | Literal["auto"] | None = Field(
-        "auto", description="farthest of the k neighbours must be closer than this (m); depends on k "
+        1.5, description="farthest of the k neighbours must be closer than this (m); depends on k "
         "and density. 'auto': r_max_radii x the radius k neighbours span at the survey's measured "
         "density (sqrt(k / (pi rho)), rho = ln 2 / (pi s^2) from the median nearest-neighbour "
         "spacing s in plan, i.e. about 1.33 sqrt(k) s); null = off")
@@ -37,6 +37,10 @@ class RoofSeedsOptions(StageOptions):
                                "neighbourhood), and ALS density varies 2x between single and "
                                "overlapping strips (radius x sqrt 2); hedges and wall tops reach farther "
                                "(3 radii measured: the densest IGN tile lost roof, E1 3.4 -> 4.7 %)")
+    # 'auto' is not the default: at 2 points/m2 (the reviewed IGN tile thinned) 4 radii are 6.5 m
+    # and a rejected hedge-like candidate became roof (kappa 0.993 -> 0.959); 2 or 3 radii did the
+    # same; a fixed 2 m rejects it. At those densities d_max cannot tell a 1-2 m wide hedge from a
+    # roof's rim, so a metric bound is kept until a shape test replaces it.
     alpha: float | None = Field(1.0, ge=0, description="gradient test G_z <= alpha * max(G_x, G_y) "
                                 "over the neighbourhood extent (unitless; 1 admits pitches up to "
                                 "about 45 degrees); null = off")
