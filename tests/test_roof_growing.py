@@ -703,3 +703,94 @@ def test_ndvi_keeps_a_crown_off_the_roof_where_colour_does_not(ti_arch):
         tree_as_roof[use_nir] = (result.labels[tree] == 6).mean()
     # measured 0.22 with NDVI against 0.29 without
     assert tree_as_roof[True] < 0.85 * tree_as_roof[False]
+
+
+def reference_edge_growth(xyz, knn, segment, normal, curvature, eligible, reach, tol, tilt, planar_max,
+                          rounds, min_support):
+    """kernels.seeds.grow_roof_edges written out point by point in float64 (module docstring),
+    with the smallest margin of any decision to its threshold."""
+    n, k = knn.shape
+    x = xyz.astype(np.float64)
+    label = segment.astype(np.int64).copy()
+    has = (label >= 0) & (curvature < planar_max)
+    plane = np.zeros((n, 6))
+    plane[has, :3], plane[has, 3:] = x[has], normal[has]
+    margin = np.inf
+    for _ in range(rounds):
+        new_has, new_plane = has.copy(), plane.copy()
+        for i in np.flatnonzero((label >= 0) & ~has):
+            cands = [(float(np.sum((x[i] - x[j]) ** 2)), j) for j in knn[i]
+                     if j >= 0 and label[j] == label[i] and has[j]]
+            if cands:
+                new_has[i], new_plane[i] = True, plane[min(cands)[1]]
+        has, plane = new_has, new_plane
+
+    def off_of(p, q):
+        o = x[q] - plane[p, :3]
+        return abs(float(o @ plane[p, 3:])), tol + tilt * float(np.sqrt(o @ o))
+
+    for _ in range(rounds):
+        new_label, new_has, new_plane = label.copy(), has.copy(), plane.copy()
+        for i in np.flatnonzero((label < 0) & (eligible != 0)):
+            best = None
+            for j in knn[i]:
+                if j < 0 or label[j] < 0 or not has[j]:
+                    continue
+                d = float(np.sqrt(np.sum((x[i] - x[j]) ** 2)))
+                margin = min(margin, abs(d - reach))
+                if d > reach:
+                    continue
+                off, bound = off_of(j, i)
+                margin = min(margin, abs(off - bound))
+                if off <= bound:
+                    key = (off, label[j], j)
+                    best = key if best is None or key < best else best
+            if best is not None:
+                j = best[2]
+                support = 0
+                for q in knn[i]:
+                    if q >= 0:
+                        off, bound = off_of(j, q)
+                        margin = min(margin, abs(off - bound))
+                        support += off <= bound
+                if support >= min_support:
+                    new_label[i], new_has[i], new_plane[i] = label[j], True, plane[j]
+        if (new_label >= 0).sum() == (label >= 0).sum():
+            break
+        label, has, plane = new_label, new_has, new_plane
+    return label, margin
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_edge_growth_kernel_equals_sequential_reference(ti_arch, seed):
+    """grow_roof_edges on a random cloud (three tilted planes plus scattered points, random
+    segments on parts of the planes) equals the point-by-point reference."""
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(seed)
+    parts = []
+    for cx, slope in ((0.0, 0.3), (7.0, -0.5), (14.0, 0.0)):
+        u, v = rng.uniform(0, 6, 250), rng.uniform(0, 6, 250)
+        parts.append(np.column_stack([cx + u, v, 5 + slope * v + rng.normal(0, 0.03, 250)]))
+    parts.append(rng.uniform([0, 0, 3], [20, 6, 9], (150, 3)))
+    xyz = np.concatenate(parts).astype(np.float32)
+    n, k = len(xyz), 8
+    knn = cKDTree(xyz).query(xyz, k + 1)[1][:, 1:].astype(np.int32)
+    knn[rng.random((n, k)) < 0.05] = -1
+    normal = rng.normal(0, 0.05, (n, 3)) + [0, 0, 1]
+    for p, slope in zip(range(3), (0.3, -0.5, 0.0)):
+        normal[250 * p:250 * (p + 1)] = np.array([0, -slope, 1]) + rng.normal(0, 0.02, (250, 3))
+    normal = (normal / np.linalg.norm(normal, axis=1, keepdims=True)).astype(np.float32)
+    curvature = rng.uniform(0, 0.05, n).astype(np.float32)
+    segment = np.full(n, -1, np.int32)
+    for p in range(3):
+        inner = np.arange(250 * p, 250 * (p + 1))
+        inner = inner[(xyz[inner, 0] - 7 * p > 1.5) & (xyz[inner, 0] - 7 * p < 4.5)]
+        segment[inner] = p
+    eligible = (rng.random(n) < 0.9).astype(np.uint8)
+    args = dict(reach=0.9, tol=0.08, tilt=0.1, planar_max=0.02, rounds=3)
+    got = seeds.grow_roof_edges(xyz, knn, segment, normal, curvature, eligible, min_support=3, **args)
+    want, margin = reference_edge_growth(xyz, knn, segment, normal, curvature, eligible, min_support=3, **args)
+    assert margin > 1e-5                       # no decision within float32 noise of its threshold
+    assert (got >= 0).sum() > (segment >= 0).sum() + 50      # the segments grew
+    np.testing.assert_array_equal(got, want)
