@@ -82,10 +82,10 @@ NOTES = {
         "data: reviewed tile 0.9975 -> 0.982, merged IGN block 0.871 -> 0.844, ign_870000 0.762 -> "
         "0.757. In the IGN truth most such segments (low, square, 2-10 m2) are not building, so the "
         "rule is not used (2026-11-22).",
-        "Edge completion (`roof_filter.edge_growth`, issue 16), kappa before -> after (the same run "
-        "without it and without NDVI): reviewed tile 0.9975 -> 0.9980; ign_870000 0.7618 -> 0.7616; "
+        "Edge completion (`roof_filter.edge_growth`, issue 16), kappa at b45b7e8 -> with it "
+        "(and NDVI): reviewed tile 0.9975 -> 0.9980; ign_870000 0.7618 -> 0.7616; "
         "six IGN tiles 0.857 / 0.888 / 0.941 / 0.870 / 0.860 / 0.836 -> 0.853 / 0.889 / 0.942 / "
-        "0.870 / 0.863 / 0.840, merged 0.8713 -> 0.8714; the IGN block thinned to 2 / 3 / 5 points/m2 "
+        "0.870 / 0.862 / 0.840, merged 0.8713 -> 0.8714; the IGN block thinned to 2 / 3 / 5 points/m2 "
         "(hash thinning, scored on the kept points) 0.874 / 0.874 / 0.876 -> 0.879 / 0.878 / 0.875; "
         "the reviewed tile thinned 0.992 / 0.993 / 0.997 -> 0.993 / 0.995 / 0.998. On the dense tiles "
         "footprint completion already added most rims; the gain is at low density. The misses left on "
