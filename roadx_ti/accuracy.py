@@ -150,10 +150,40 @@ def datasets(task: str, points: int, seeds=(0, 1, 2)):
         if tiles:
             rows.append((f"IGN tiles merged: the {len(tiles)} above as one block (no colour)",
                          lambda: _merged(tiles), [6], "roof_als.yaml"))
+        # sparse ALS (national surveys: 2-5 points/m2) from the same real tiles, scored on the kept points
+        if tiles:
+            rows.append((f"IGN tiles merged, thinned to {THIN_DENSITY:g} points/m2 (no colour)",
+                         lambda: thin_to_density(_merged(tiles), THIN_DENSITY), [6], "roof_als.yaml"))
+        rows.append((f"IGN ign_874000_6617000_reviewed thinned to {THIN_DENSITY:g} points/m2",
+                     lambda: thin_to_density(io.read(SHARED_DATA / "roof" / "ign_874000_6617000_reviewed.laz"),
+                                             THIN_DENSITY), [19], "roof_als.yaml"))
         for seed in seeds:
             rows.append((f"synthetic als-roof {points // 1000}k seed {seed}",
                          lambda s=seed: synthetic.generate("als-roof", points, s), [6], "roof_als.yaml"))
     return rows
+
+
+THIN_DENSITY = 3.0      # points per m2 of the thinned real tiles
+
+
+def thin_to_density(cloud, per_m2: float):
+    """A deterministic, spatially uniform thinning of ``cloud`` to about ``per_m2`` points per m2
+    of occupied plan area (roadx_ti.estimates.occupied_area): a point is kept when a hash of its
+    world coordinates in centimetres falls below per_m2 / density, so the kept set does not depend
+    on the points' order. The cloud itself when it is not denser than that."""
+    from roadx_ti.estimates import occupied_area
+
+    density = cloud.n / max(occupied_area(cloud.xyz[:, :2]), 1e-9)
+    if density <= per_m2:
+        return cloud
+    q = np.round((cloud.xyz.astype(np.float64) + cloud.origin) * 100).astype(np.int64).astype(np.uint64)
+    h = (q[:, 0] * np.uint64(0x9E3779B97F4A7C15)) ^ (q[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F)) \
+        ^ (q[:, 2] * np.uint64(0x165667B19E3779F9))
+    h ^= h >> np.uint64(29)
+    h *= np.uint64(0xBF58476D1CE4E5B9)
+    h ^= h >> np.uint64(32)
+    keep = (h >> np.uint64(11)).astype(np.float64) / 2.0 ** 53 < per_m2 / density
+    return cloud.subset(np.flatnonzero(keep))
 
 
 def _merged(paths):
