@@ -259,7 +259,7 @@ def _check_xyz(xyz):
 
 
 _SCRATCH = {}
-_SCRATCH_OWNER = [None]    # the Taichi program the cached buffers belong to
+_SCRATCH_OWNER = [None]    # the Taichi runtime the cached buffers belong to
 
 
 def scratch(name: str, dtype, shape):

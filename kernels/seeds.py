@@ -21,6 +21,17 @@ P3 semantics (order independent, so a data-parallel run equals a sequential one)
   is a leaf of that roof: it takes the smallest such segment label (integer atomic min);
 - every other point is -1.
 
+Edge completion (after P4's keep decision, grow_roof_edges): points on a roof's rim (eaves, gable
+ends, courtyard rims) have neighbourhoods that take in wall, gutter, foliage or ground points and
+fail the seed and normal tests. Planes first: a kept roof point with curvature < planar_max
+carries its own plane (position, normal); the roof's other points take the plane of their nearest
+planar kNN neighbour of the same roof (rounds of the previous round's planes). Then rounds of:
+an unlabelled eligible point q joins the roof of a kNN neighbour p that carries a plane (origin
+o, normal m) when |q - p| <= reach, |m . (q - o)| <= tol + tilt |q - o| and at least min_support
+of q's k neighbours lie on that plane by the same rule; of several, the plane closest to q wins
+(ties: lower roof id, then lower point index); q takes p's roof and plane, so chains stay on one
+interior plane. Each round reads only the previous round's arrays.
+
 Footprint completion (after P4, attach_to_footprints): a roof segment's plan-view footprint also
 holds points the plane growth cannot reach: walls below the roof edge, chimneys and roof units
 standing on it, roof points under overhanging foliage (their orthophoto colour is the tree's).
@@ -274,6 +285,153 @@ def grow_roof_segments(knn_indices, edge_ok, seed, *, curvature=None, expand_cur
 
 
 
+@ti.kernel
+def _plane_round(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                 knn: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                 label: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                 has_in: ti.types.ndarray(dtype=ti.u8, ndim=1),
+                 plane_in: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                 has_out: ti.types.ndarray(dtype=ti.u8, ndim=1),
+                 plane_out: ti.types.ndarray(dtype=ti.f32, ndim=2)):
+    # a segment point without a plane takes the plane of its nearest kNN neighbour of the same
+    # segment that has one (previous round's planes only)
+    for i in label:
+        has = has_in[i]
+        for c in ti.static(range(6)):
+            plane_out[i, c] = plane_in[i, c]
+        if label[i] >= 0 and has == 0:
+            best_d = ti.f32(3.0e38)
+            best = -1
+            for j in range(knn.shape[1]):
+                nb = knn[i, j]
+                if nb >= 0:
+                    if label[nb] == label[i] and has_in[nb] != 0:
+                        dx = xyz[i, 0] - xyz[nb, 0]
+                        dy = xyz[i, 1] - xyz[nb, 1]
+                        dz = xyz[i, 2] - xyz[nb, 2]
+                        d_sq = dx * dx + dy * dy + dz * dz
+                        if d_sq < best_d or (d_sq == best_d and nb < best):
+                            best_d = d_sq
+                            best = nb
+            if best >= 0:
+                has = ti.u8(1)
+                for c in ti.static(range(6)):
+                    plane_out[i, c] = plane_in[best, c]
+        has_out[i] = has
+
+
+@ti.kernel
+def _edge_round(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                knn: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                eligible: ti.types.ndarray(dtype=ti.u8, ndim=1),
+                label_in: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                has_in: ti.types.ndarray(dtype=ti.u8, ndim=1),
+                plane_in: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                reach_sq: ti.f32, tol: ti.f32, tilt: ti.f32, min_support: ti.i32,
+                label_out: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                has_out: ti.types.ndarray(dtype=ti.u8, ndim=1),
+                plane_out: ti.types.ndarray(dtype=ti.f32, ndim=2)):
+    for i in label_in:
+        lab = label_in[i]
+        has = has_in[i]
+        for c in ti.static(range(6)):
+            plane_out[i, c] = plane_in[i, c]
+        if lab < 0 and eligible[i] != 0:
+            best_d = ti.f32(3.0e38)
+            best = -1
+            for j in range(knn.shape[1]):
+                nb = knn[i, j]
+                if nb >= 0:
+                    if label_in[nb] >= 0 and has_in[nb] != 0:
+                        dx = xyz[i, 0] - xyz[nb, 0]
+                        dy = xyz[i, 1] - xyz[nb, 1]
+                        dz = xyz[i, 2] - xyz[nb, 2]
+                        if dx * dx + dy * dy + dz * dz <= reach_sq:
+                            # distance to the anchor's plane (origin o, normal m), allowing for the
+                            # normal's uncertainty over the distance from the plane's origin
+                            ox = xyz[i, 0] - plane_in[nb, 0]
+                            oy = xyz[i, 1] - plane_in[nb, 1]
+                            oz = xyz[i, 2] - plane_in[nb, 2]
+                            off = ti.abs(ox * plane_in[nb, 3] + oy * plane_in[nb, 4] + oz * plane_in[nb, 5])
+                            if off <= tol + tilt * ti.sqrt(ox * ox + oy * oy + oz * oz):
+                                s = label_in[nb]
+                                if off < best_d or (off == best_d and (s < lab or (s == lab and nb < best))):
+                                    best_d = off
+                                    best = nb
+                                    lab = s
+            if best >= 0:
+                # support: how many of the point's k neighbours lie on that plane too (an eave
+                # point has its roof side there, a crown point beside the roof few)
+                support = 0
+                for j in range(knn.shape[1]):
+                    nb = knn[i, j]
+                    if nb >= 0:
+                        ox = xyz[nb, 0] - plane_in[best, 0]
+                        oy = xyz[nb, 1] - plane_in[best, 1]
+                        oz = xyz[nb, 2] - plane_in[best, 2]
+                        off = ti.abs(ox * plane_in[best, 3] + oy * plane_in[best, 4] + oz * plane_in[best, 5])
+                        if off <= tol + tilt * ti.sqrt(ox * ox + oy * oy + oz * oz):
+                            support += 1
+                if support < min_support:
+                    best = -1
+                    lab = label_in[i]
+            if best >= 0:
+                has = ti.u8(1)
+                for c in ti.static(range(6)):
+                    plane_out[i, c] = plane_in[best, c]
+        label_out[i] = lab
+        has_out[i] = has
+
+
+def grow_roof_edges(xyz, knn_indices, segment, normal, curvature, eligible, *, reach: float,
+                    tol: float, tilt: float, planar_max: float, rounds: int, min_support: int = 0):
+    """Roof segments completed out to their boundary (int32 (n,), same ids as ``segment``).
+
+    Planes: a segment point with curvature < planar_max carries its own plane (its position and
+    its normal); the segment's other points take the plane of their nearest planar kNN neighbour
+    of the same segment (``rounds`` data-parallel rounds). Then in each of ``rounds`` rounds an
+    unlabelled ``eligible`` point q joins the segment of a kNN neighbour p carrying a plane
+    (origin o, normal m) when |q - p| <= reach (m) and |m . (q - o)| <= tol + tilt * |q - o| (m);
+    q takes p's segment and plane, so a chain of joins stays on one interior plane (it cannot
+    creep down a wall), and only when at least ``min_support`` of its k neighbours lie on that
+    plane by the same rule. Of several such p, the plane closest to q wins (ties: lower segment id,
+    then lower point index). Each round reads only the previous one's arrays: order independent
+    up to exact ties.
+    """
+    knn = kernel_array(knn_indices, "int32")
+    n = int(knn.shape[0])
+    label = np.ascontiguousarray(to_numpy(segment), np.int32).copy()
+    if n == 0 or int(knn.shape[1]) == 0 or rounds <= 0 or not (label >= 0).any():
+        return label
+    host_xyz = np.asarray(to_numpy(xyz), np.float32)
+    host_curv = np.asarray(to_numpy(curvature), np.float32)
+    own = (label >= 0) & (host_curv < planar_max)
+    plane = np.zeros((n, 6), np.float32)
+    plane[own, :3] = host_xyz[own]
+    plane[own, 3:] = np.asarray(to_numpy(normal), np.float32)[own]
+    pts = as_ndarray(np.ascontiguousarray(host_xyz))
+    planes = [as_ndarray(plane), ndarray(ti.f32, (n, 6))]
+    has = [as_ndarray(own.astype(np.uint8)), ndarray(ti.u8, (n,))]
+    labels = [as_ndarray(label), ndarray(ti.i32, (n,))]
+    for _ in range(int(rounds)):
+        _plane_round(pts, knn, labels[0], has[0], planes[0], has[1], planes[1])
+        planes.reverse()
+        has.reverse()
+    elig = as_ndarray(np.ascontiguousarray(to_numpy(eligible), np.uint8))
+    before = int(np.count_nonzero(label >= 0))
+    for _ in range(int(rounds)):
+        _edge_round(pts, knn, elig, labels[0], has[0], planes[0], float(reach) ** 2, float(tol), float(tilt),
+                    int(min_support), labels[1], has[1], planes[1])
+        labels.reverse()
+        planes.reverse()
+        has.reverse()
+        now = int(np.count_nonzero(labels[0].to_numpy() >= 0))
+        if now == before:
+            break
+        before = now
+    return labels[0].to_numpy()
+
+
 @ti.func
 def _cell_index(x: ti.f32, y: ti.f32, x0: ti.f32, y0: ti.f32, cell: ti.f32, col0: ti.i32,
                 row0: ti.i32) -> ti.math.ivec2:
@@ -467,4 +625,4 @@ def _attach_by_blocks(xyz, seg, ok, elig, lattice, reach, surface_tol, result):
 
 
 __all__ = ["seed_constraints", "required_planar_neighbours", "roof_growth_edges",
-           "grow_roof_segments", "attach_to_footprints"]
+           "grow_roof_segments", "grow_roof_edges", "attach_to_footprints"]

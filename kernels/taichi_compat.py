@@ -57,8 +57,12 @@ def is_initialized() -> bool:
 
 
 def runtime_program():
-    """The current runtime's program object (identifies one ti.init; None before it)."""
-    return ti.lang.impl.get_runtime().prog
+    """An object that identifies the current runtime (one ti.init): Taichi's Python runtime object,
+    which ti.init / ti.reset replace. Not the C++ program's pybind wrapper: a new program allocated
+    at a freed one's address comes back as the old wrapper while a reference to it is held, so the
+    scratch cache of kernels/grid.py took a dead runtime's buffers for live ones (intermittent
+    'RuntimeError: argument not found' after a backend switch in the tests)."""
+    return ti.lang.impl.get_runtime()
 
 
 def current_arch():

@@ -22,6 +22,7 @@ class Cloud:
     classification: np.ndarray | None = None  # (n,) uint8: input classes (truth in tests)
     # (n, 2) uint8: LiDAR return number and number of returns of the point's pulse (1-based)
     returns: np.ndarray | None = None
+    nir: np.ndarray | None = None           # (n,) uint16: near infrared (LAS point formats 8 and 10)
     attributes: dict = field(default_factory=dict)  # other per-point arrays (non-LAS formats)
     las: object | None = None               # laspy.LasData this cloud came from, if any
     source: str = ""                        # path or description, for messages
@@ -32,7 +33,7 @@ class Cloud:
         if self.xyz.ndim != 2 or self.xyz.shape[1] != 3:
             raise ValueError("xyz must have shape (n, 3)")
         n = len(self.xyz)
-        for name in ("rgb", "intensity", "classification", "returns"):
+        for name in ("rgb", "intensity", "classification", "returns", "nir"):
             a = getattr(self, name)
             if a is not None and len(a) != n:
                 raise ValueError(f"{name} has {len(a)} rows for {n} points")
@@ -59,6 +60,19 @@ class Cloud:
             rgb /= 257.0
         return rgb
 
+    def ndvi(self) -> np.ndarray | None:
+        """float32 (n,) NDVI = (NIR - red) / (NIR + red) in -1..1 (0 where both are 0), or None
+        unless the cloud has colour and a NIR field whose values vary (IGN Lidar HD tiles carry
+        all-zero NIR fields)."""
+        if self.nir is None or self.rgb is None or not self.n or int(self.nir.min()) == int(self.nir.max()):
+            return None
+        nir = self.nir.astype(np.float32)
+        red = self.rgb[:, 0].astype(np.float32)
+        if self.color_depth == 8:        # NIR is 16-bit in LAS; bring red to the same scale
+            red *= 257.0
+        total = nir + red
+        return np.where(total > 0, (nir - red) / np.maximum(total, 1.0), 0.0).astype(np.float32)
+
     def penetrated(self) -> np.ndarray | None:
         """bool (n,): the point is an earlier return of a pulse that went on (return number below
         the number of returns): foliage, hedges and roof edges, rarely roof interiors. None
@@ -83,7 +97,7 @@ class Cloud:
         def pick(a):
             return None if a is None else a[index]
         return replace(self, xyz=self.xyz[index], rgb=pick(self.rgb), intensity=pick(self.intensity),
-                       classification=pick(self.classification), returns=pick(self.returns),
+                       classification=pick(self.classification), returns=pick(self.returns), nir=pick(self.nir),
                        attributes={k: v[index] for k, v in self.attributes.items()}, las=None)
 
     @classmethod

@@ -7,6 +7,9 @@ tile), logged, and written to the summary JSON:
 - ``plan_area_m2`` / ``density_per_m2``: occupied plan area (cells of ``AREA_CELL`` m holding a
   point) and points per m2 of it, never the bounding box (stray points far away do not count);
 - ``point_spacing_m``: median distance to the nearest neighbour in plan, on a sample;
+- ``pulse_spacing_m`` (where the input has return numbers): the same over first returns only, the
+  spacing at which a surface seen from above (a roof) is sampled: vegetation's later returns make
+  ``point_spacing_m`` smaller than a roof's spacing on wooded ALS tiles;
 - ``height_noise_m``: robust spread of slope-corrected height differences between neighbours
   whose neighbourhoods are among the flatter half (1.4826 x median absolute difference /
   sqrt 2): the noise of one point on a smooth surface;
@@ -67,6 +70,11 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     flat = np.ascontiguousarray(np.column_stack([xyz[:, :2], np.zeros(len(xyz), np.float32)]))
     nn_plan = knn(flat, 1)[1][:, 0]
     out["point_spacing_m"] = round(float(np.median(nn_plan)) * np.sqrt(len(xyz) / total), 4)
+    if cloud.returns is not None and (cloud.returns[pick, 1] > 1).any():
+        first = np.flatnonzero(cloud.returns[pick, 0] <= 1)
+        if len(first) >= 8:
+            nn_first = knn(np.ascontiguousarray(flat[first]), 1)[1][:, 0]
+            out["pulse_spacing_m"] = round(float(np.median(nn_first)) * np.sqrt(len(xyz) / total), 4)
     gradient = coarse_gradient(xyz, 2.5)
     a = np.repeat(np.arange(len(xyz)), k)
     b = idx.reshape(-1)
@@ -108,14 +116,15 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
         return {"points": 0, "plan_area_m2": 0.0, "density_per_m2": 0.0}
     read_origin = np.asarray(read_origin, np.float64)
     ratio = min(1.0, sample_points / total)
-    cells, xyz_parts, rgb_parts = [], [], []
+    cells, xyz_parts, rgb_parts, return_parts = [], [], [], []
 
-    def take(world, rgb):
+    def take(world, rgb, returns):
         local = (world - read_origin).astype(np.float32)
         cells.append(np.unique(_cell_keys(world[:, :2], AREA_CELL)))
         pick = hashed_sample(coordinate_cells(local, read_origin, 0.01), ratio).astype(bool)
         xyz_parts.append(local[pick])
         rgb_parts.append(None if rgb is None else rgb[pick])
+        return_parts.append(None if returns is None else returns[pick])
     for f in files:
         if f.path.lower().endswith((".las", ".laz")) and not f.path.lower().endswith(".copc.laz"):
             with laspy.open(f.path) as reader:
@@ -125,17 +134,20 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
                                              np.asarray(record.z)]).astype(np.float64)
                     rgb = np.column_stack([np.asarray(record[c]) for c in ("red", "green", "blue")]).astype(
                         np.uint16) if colour else None
-                    take(world, rgb)
+                    returns = np.column_stack([np.asarray(record.return_number),
+                                               np.asarray(record.number_of_returns)]).astype(np.uint8)
+                    take(world, rgb, returns)
         else:     # COPC (its chunks are not seekable by point) and the other formats: read whole
             cloud = io.read(f.path, origin=read_origin)
-            take(cloud.world_xyz(), cloud.rgb)
+            take(cloud.world_xyz(), cloud.rgb, cloud.returns)
     occupied = np.unique(np.concatenate(cells))
     area = float(len(occupied)) * AREA_CELL * AREA_CELL
     rgb = None
     if all(r is not None for r in rgb_parts):
         rgb = np.concatenate(rgb_parts)
         rgb = rgb if rgb.any() else None
-    sample = Cloud(xyz=np.concatenate(xyz_parts), origin=read_origin, rgb=rgb)
+    returns = np.concatenate(return_parts) if all(r is not None for r in return_parts) else None
+    sample = Cloud(xyz=np.concatenate(xyz_parts), origin=read_origin, rgb=rgb, returns=returns)
     out = measure(sample, survey_points=total, area=area)
     out["sample_points"] = int(sample.n)
     out["area_cell_m"] = AREA_CELL

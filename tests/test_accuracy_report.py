@@ -31,3 +31,33 @@ def test_stage_counts_add_up_to_the_errors():
                                       "kappa": 0.9, "stages": result.stages}]}, "cmd")
     assert f"roof_filter 0 / 0 (missed {last['unlabelled_target']:,} / wrongly labelled {false:,})" in text
     assert f"cloth_ground {rows['cloth_ground']['removed_target']:,} / {rows['cloth_ground']['removed_other']:,}," in text
+    # the vegetation cue, r_max and edge completion per dataset (synthetic als-roof: RGB, no returns)
+    cue = rows["roof_growing"]["info"]["vegetation_cue"]
+    assert cue == "rgb_com"
+    r_max = rows["roof_seeds"]["info"]["r_max"]
+    added = rows["roof_filter"]["info"]["edges"]["added_points"]
+    assert f"| scene | {cue} | " in text and f" | {r_max} | {added} |" in text
+
+
+def test_thinning_is_uniform_deterministic_and_order_independent():
+    """accuracy.thin_to_density: about the asked density, the same kept points whatever the order,
+    spread evenly (every 10 m cell keeps close to the same fraction)."""
+    cloud = synthetic.generate("als-roof", 60_000, seed=1)
+    from roadx_ti.estimates import occupied_area
+
+    density = cloud.n / occupied_area(cloud.xyz[:, :2])
+    thin = accuracy.thin_to_density(cloud, 3.0)
+    assert abs(thin.n / occupied_area(cloud.xyz[:, :2]) - 3.0) < 0.15
+    perm = np.random.default_rng(0).permutation(cloud.n)
+    again = accuracy.thin_to_density(cloud.subset(perm), 3.0)
+    key = lambda c: np.sort(c.xyz.view(np.uint32).astype(np.uint64) @ np.array([1, 1 << 20, 1 << 40], np.uint64))  # noqa: E731
+    assert np.array_equal(key(thin), key(again))
+    cell = np.floor(cloud.xyz[:, :2] / 10).astype(np.int64)
+    kept = np.zeros(cloud.n, bool)
+    kept[np.isin(key(cloud), key(thin))] = True
+    ids, inverse = np.unique(cell, axis=0, return_inverse=True)
+    counts = np.bincount(inverse.ravel())
+    fraction = np.bincount(inverse.ravel(), kept) / counts
+    busy = counts >= 200
+    assert np.all(np.abs(fraction[busy] - 3.0 / density) < 0.3 * 3.0 / density)
+    assert accuracy.thin_to_density(thin, 10.0) is thin      # not denser: unchanged

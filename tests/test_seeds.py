@@ -114,3 +114,61 @@ def test_constraints_on_taichi_ndarrays(ti_arch):
     assert is_ndarray(got["seed"])
     want = reference_constraints(knn, curvature, max_distance, extent, **settings)
     np.testing.assert_array_equal(got["seed"].to_numpy().astype(bool), want["seed"])
+
+
+def flat_roof(density, seed=0, size=30.0):
+    """A flat 30 x 30 m roof at 6 m, Poisson sampled at ``density`` points per m2, 2 cm noise."""
+    rng = np.random.default_rng(seed)
+    m = rng.poisson(density * size * size)
+    return np.column_stack([rng.uniform(0, size, m), rng.uniform(0, size, m),
+                            6 + rng.normal(0, 0.02, m)])
+
+
+@pytest.mark.parametrize("density", [1.0, 30.0])
+def test_auto_r_max_follows_the_measured_spacing(ti_arch, density):
+    """r_max 'auto' is r_max_radii k-neighbourhood radii at the measured spacing: at 30 points/m2
+    about 0.8 m, at 1 point/m2 about 4.3 m, where the fixed 2 m of the old config fails most of the
+    roof's compact test (k = 10 neighbours span 1.8 m there)."""
+    from roadx_ti import estimates
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import ESTIMATES, StageContext
+    from roadx_ti.stages.seeds import RoofSeeds, auto_r_max
+
+    cloud = Cloud.from_world(flat_roof(density), origin=np.zeros(3))
+    measured = estimates.measure(cloud)
+    assert "pulse_spacing_m" not in measured          # no return numbers
+    # the Poisson relation auto_r_max relies on: median plan NN distance <-> density
+    expected = 4.0 * np.sqrt(10 / (np.pi * density))
+    assert auto_r_max(measured["point_spacing_m"], 10, 4.0) == pytest.approx(expected, rel=0.08)
+    compact = {}
+    for r_max in ("auto", 2.0):
+        ctx = StageContext(facts={ESTIMATES: dict(measured)})
+        result = RoofSeeds({"r_max": r_max}).run(cloud, ctx)
+        assert result.info["r_max_source"] == ("auto" if r_max == "auto" else "option")
+        if r_max == "auto":
+            assert result.info["r_max"] == pytest.approx(auto_r_max(measured["point_spacing_m"], 10, 4.0), abs=1e-4)
+        compact[r_max] = 1 - result.info["removed_by"]["compact"] / cloud.n
+    assert compact["auto"] > 0.99
+    if density < 2:
+        assert compact[2.0] < 0.8              # 72 % pass measured here
+
+
+def test_pulse_spacing_counts_first_returns_only(ti_arch):
+    """Where the file has return numbers, pulse_spacing_m is the spacing of the first returns: a
+    canopy's later returns make point_spacing_m smaller than a roof's spacing."""
+    from roadx_ti import estimates
+    from roadx_ti.cloud import Cloud
+
+    roof = flat_roof(4.0, seed=1)
+    rng = np.random.default_rng(2)
+    # a wood beside it: pulses of 3 returns at the same plan position (plus a little spread)
+    top = np.column_stack([rng.uniform(40, 70, 3600), rng.uniform(0, 30, 3600), rng.uniform(8, 12, 3600)])
+    wood = np.concatenate([top, top + rng.normal(0, 0.05, top.shape) - [0, 0, 3],
+                           top + rng.normal(0, 0.05, top.shape) - [0, 0, 6]])
+    returns = np.concatenate([np.tile([1, 1], (len(roof), 1)), np.tile([1, 3], (len(top), 1)),
+                              np.tile([2, 3], (len(top), 1)), np.tile([3, 3], (len(top), 1))]).astype(np.uint8)
+    cloud = Cloud.from_world(np.concatenate([roof, wood]), origin=np.zeros(3), returns=returns)
+    measured = estimates.measure(cloud)
+    alone = estimates.measure(Cloud.from_world(np.concatenate([roof, top]), origin=np.zeros(3)))
+    assert measured["point_spacing_m"] < 0.5 * measured["pulse_spacing_m"]
+    assert measured["pulse_spacing_m"] == pytest.approx(alone["point_spacing_m"], rel=0.02)

@@ -264,6 +264,7 @@ def read_las(path, bounds=None, origin=None) -> Cloud:
                  classification=np.asarray(las.classification, dtype=np.uint8),
                  returns=np.column_stack([np.asarray(las.return_number), np.asarray(las.number_of_returns)]
                                          ).astype(np.uint8),
+                 nir=np.asarray(las.nir, dtype=np.uint16) if "nir" in las.point_format.dimension_names else None,
                  las=las, source=str(path))
 
 

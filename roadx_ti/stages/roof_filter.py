@@ -22,6 +22,21 @@ Needs roof_growing before it (point_data 'roof_segment') and, for the height tes
   cell (footprint_cell) within annex_reach of a cell holding a kept roof point: garages, porches
   and annexes built against a house are building even when small or narrow. Decided from the
   kept roofs only (no chains), so the result is order independent.
+- edge completion (edge_growth, kernels/seeds.grow_roof_edges): roof points whose neighbourhood
+  straddles the roof's edge (eaves, gable ends, courtyard rims: wall, gutter or foliage points in
+  their k neighbours) fail the seed and normal tests and are left out of every segment, or form
+  small dropped ones. Each kept roof grows out to its boundary over the kNN graph: a point joins
+  when a roof neighbour within edge_reach point spacings carries a plane (its own where it is
+  planar, else its nearest planar roof neighbour's) the point lies on within edge_noise x sqrt 2
+  x the height noise + edge_tilt x the distance from that plane's origin, at least
+  edge_min_height above the ground, and no vegetation cue keeps it off (colour, and with
+  edge_foliage_returns false also foliage returns: point_data 'edge_may_join' / 'edge_may_join_all'
+  from roof_growing; eaves split pulses, so by default returns do not keep a rim point off); joined points carry the plane on, so a chain
+  of joins stays on one interior plane and does not creep down a wall (edge_rounds rounds). Only
+  kept roofs grow (a plane patch in a tree that grew would pass the area test). Spacing: the
+  survey estimate (roadx_ti.estimates); noise: the kept roofs' own plane noise (roof_plane_noise;
+  the survey's height noise counts foliage on wooded tiles); both under info 'edges'. Footprint
+  completion reads the roofs as they were before edge growth.
 - footprint completion (attach_footprint, kernels/seeds.attach_to_footprints): walls below a
   kept roof's edge, chimneys and roof units standing on it and roof points under overhanging
   foliage join it; off the roof surface only points that are not vegetation-coloured join
@@ -36,7 +51,8 @@ import numpy as np
 from pydantic import Field
 
 from roadx_ti.cloud import Cloud
-from roadx_ti.stages.base import CLASS_BUILDING, CLASS_OTHER, Stage, StageContext, StageOptions, StageResult
+from roadx_ti.stages.base import (CLASS_BUILDING, CLASS_OTHER, Stage, StageContext, StageOptions, StageResult,
+                                  estimate)
 
 
 class RoofFilterOptions(StageOptions):
@@ -62,13 +78,37 @@ class RoofFilterOptions(StageOptions):
     annex_max_vegetation: float = Field(0.3, ge=0, le=1, description="largest fraction of "
                                         "vegetation-coloured points of an annex (unitless): small "
                                         "planar patches in trees beside a roof are not annexes")
+    edge_growth: bool = Field(True, description="complete each kept roof out to its boundary: edge "
+                              "and eave points whose neighbourhood straddles the roof edge (they fail "
+                              "the seed and normal tests) join when they lie on the roof's plane")
+    edge_reach: float = Field(4.0, gt=0, description="an edge point joins from a roof point at most "
+                              "this many point spacings away (unitless; spacing = the measured median "
+                              "nearest-neighbour distance in plan, about half of 1 / sqrt(density))")
+    edge_rounds: int = Field(3, ge=0, le=16, description="rounds of edge growth: each extends a "
+                             "roof by at most edge_reach spacings; 0 = off")
+    edge_noise: float = Field(3.0, ge=0, description="plane distance tolerance of edge growth in "
+                              "sigmas of the kept roofs' own plane noise (the robust spread of the "
+                              "distances of planar roof points' neighbours to their plane)")
+    edge_tilt: float = Field(0.1, ge=0, description="plane distance allowed per metre from the "
+                             "plane's origin point (unitless: the uncertainty of its normal, ~6 degrees)")
+    edge_support: float = Field(0.4, ge=0, le=1, description="an edge point joins only when at least "
+                                "this fraction of its k neighbours lie on the roof's plane (unitless): "
+                                "an eave point has its roof side there, foliage beside a roof little")
+    edge_foliage_returns: bool = Field(True, description="foliage returns (roof_growing's returns "
+                                       "rule: rough earlier returns of multi-return pulses) may join by "
+                                       "edge growth too: an eave splits the pulse (roof, then the ground "
+                                       "beside the wall), so a roof's rim is mostly such returns")
+    edge_min_height: float = Field(1.0, description="edge points lower than this above the ground "
+                                   "(m) never join: the ground and low plants beside a wall")
     attach_footprint: bool = Field(True, description="add walls, chimneys, roof units and roof "
                                    "points under foliage inside or below a kept roof's footprint")
     attach_min_height: float = Field(1.0, description="only points at least this high above "
                                      "ground (m) join a footprint: low returns beside a wall are "
                                      "mostly ground and low plants the cloth left as non-ground")
     footprint_cell: float = Field(1.0, gt=0, description="grid cell of the roof footprints (m); "
-                                  "about 2-3 point spacings so a roof has no empty cells")
+                                  "about 2-3 point spacings so a roof has no empty cells (a cell of 5 "
+                                  "measured spacings on IGN tiles thinned to 3 points/m2, 1.45 m: "
+                                  "kappa 0.880 -> 0.847, more foliage inside footprints)")
     inside_reach: float = Field(3.0, ge=0, description="a point is inside a footprint when roof "
                                 "cells lie this close (m) in all four axis directions; covers "
                                 "holes left by roof units up to about 2 x inside_reach wide")
@@ -139,6 +179,45 @@ def annex_segments(segment: np.ndarray, xy: np.ndarray, kept: np.ndarray, candid
     return touching & candidate
 
 
+NOISE_SAMPLE = 20_000   # planar roof points the roofs' plane noise is measured on (at most)
+
+
+def coordinate_hash(xyz: np.ndarray) -> np.ndarray:
+    """uint64 per point from the bits of its float32 coordinates: a sample drawn by it does not
+    depend on the points' order."""
+    bits = np.ascontiguousarray(xyz, np.float32).view(np.uint32).astype(np.uint64)
+    h = bits[:, 0] * np.uint64(0x9E3779B97F4A7C15) ^ bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F) \
+        ^ bits[:, 2] * np.uint64(0x165667B19E3779F9)
+    h ^= h >> np.uint64(29)
+    h *= np.uint64(0xBF58476D1CE4E5B9)
+    return h ^ (h >> np.uint64(32))
+
+
+def roof_plane_noise(xyz, knn, segment, normal, curvature, planar_max: float, min_pairs: int = 100,
+                     sample: int = NOISE_SAMPLE):
+    """Noise of a point pair on the roofs (m): 1.4826 x the median distance of the same-segment kNN
+    neighbours of planar roof points (curvature < planar_max) to the plane of the point (its
+    position and normal), on about ``sample`` of those points drawn by coordinate_hash. None with
+    fewer than ``min_pairs`` such pairs. float64 arithmetic."""
+    knn = np.asarray(knn)
+    rows = np.flatnonzero((segment >= 0) & (np.asarray(curvature) < planar_max))
+    if len(rows) > sample:
+        keep = (coordinate_hash(np.asarray(xyz)[rows]) >> np.uint64(40)) < np.uint64((sample << 24) // len(rows))
+        rows = rows[keep]
+    if not len(rows):
+        return None
+    nb = knn[rows]
+    ok = nb >= 0
+    same = ok & (segment[np.where(ok, nb, 0)] == segment[rows][:, None])
+    a = np.repeat(rows, knn.shape[1])[same.ravel()]
+    b = nb.ravel()[same.ravel()]
+    if len(a) < min_pairs:
+        return None
+    pts = np.asarray(xyz, np.float64)
+    off = np.abs(((pts[b] - pts[a]) * np.asarray(normal, np.float64)[a]).sum(axis=1))
+    return 1.4826 * float(np.median(off))
+
+
 class RoofFilter(Stage):
     name = "roof_filter"
     Options = RoofFilterOptions
@@ -198,6 +277,10 @@ class RoofFilter(Stage):
             kept = kept | annex
         roof = np.zeros(len(segment), bool)
         roof[segment >= 0] = kept[segment[segment >= 0]]
+        edges = None
+        core = np.where(roof, segment, -1).astype(np.int32)   # the kept roofs before edge growth
+        if o.edge_growth and o.edge_rounds and roof.any():
+            segment, roof, edges = self._grow_edges(cloud, ctx, segment, roof, height)
         attached = 0
         if o.attach_footprint and roof.any():
             from roadx_ti.kernels.seeds import attach_to_footprints
@@ -206,10 +289,13 @@ class RoofFilter(Stage):
             off_surface_ok = None if vegetation is None else (np.asarray(vegetation) == 0).astype(np.uint8)
             eligible = None if height is None else \
                 (np.asarray(height) >= o.attach_min_height).astype(np.uint8)
+            # the footprints of the roofs as grown from their seeds: the rims edge growth added
+            # would widen them over foliage beside a roof (its on-surface rule takes any colour)
             grown = np.asarray(attach_to_footprints(
-                cloud.xyz, np.where(roof, segment, -1).astype(np.int32), off_surface_ok, eligible,
+                cloud.xyz, core, off_surface_ok, eligible,
                 cell=o.footprint_cell, inside_reach=o.inside_reach, wall_reach=o.wall_reach,
                 surface_tol=o.surface_tol))
+            grown = np.where(roof, segment, grown)
             attached = int(np.count_nonzero(grown >= 0) - np.count_nonzero(roof))
             segment, roof = grown, grown >= 0
         segment_id, kept_count = relabel_compact(np.where(roof, segment, -1).astype(np.int32))
@@ -221,4 +307,52 @@ class RoofFilter(Stage):
                 "dropped_by_width": int((keep_area & keep_height & ~keep_width).sum()),
                 "annexes_kept": annexes, "attached_points": attached,
                 "segments_kept": int(kept_count), "roof_points": int(roof.sum())}
+        if edges is not None:
+            info["edges"] = edges
         return StageResult(labels=labels, segment_id=segment_id, info=info)
+
+    def _grow_edges(self, cloud: Cloud, ctx: StageContext, segment, roof, height):
+        """Edge completion of the kept roofs (kernels.seeds.grow_roof_edges) with its distances
+        from the measured point spacing and height noise: (segment, roof, info); None for info
+        when roof_seeds' kNN graph, normals and curvature are not there."""
+        from roadx_ti.kernels.seeds import grow_roof_edges, required_planar_neighbours
+
+        o = self.options
+        knn = ctx.facts.get("knn")
+        if knn is None or len(knn) != cloud.n or "normal" not in ctx.point_data or "curvature" not in ctx.point_data:
+            return segment, roof, None
+        spacing, source = estimate(ctx, "pulse_spacing_m") or estimate(ctx, "point_spacing_m"), "estimates"
+        if not spacing:
+            # the nearest of the k neighbours' distances, median, as the plan nearest-neighbour
+            # distance of a uniform sample of that density (0.5 / sqrt(density))
+            distance = np.asarray(ctx.point_data.get("neighbour_distance", []), np.float64)
+            finite = distance[np.isfinite(distance)]
+            k = max(int(np.shape(knn)[1]), 1)
+            spacing = 0.5 * float(np.median(finite)) * np.sqrt(np.pi / k) if len(finite) else 0.0
+            source = "neighbour_distance"
+        reach = o.edge_reach * float(spacing)
+        planar_max = float(ctx.facts.get("roof_curvature_max") or 0.02)
+        noise, noise_source = roof_plane_noise(cloud.xyz, knn, np.where(roof, segment, -1), ctx.point_data["normal"],
+                                               ctx.point_data["curvature"], planar_max), "roof_planes"
+        if noise is None:
+            noise, noise_source = np.sqrt(2.0) * float(estimate(ctx, "height_noise_m", 0.0)), "estimates"
+        tol = o.edge_noise * noise
+        info = {"spacing_m": round(float(spacing), 4), "spacing_source": source,
+                "pair_noise_m": round(float(noise), 4), "noise_source": noise_source,
+                "reach_m": round(reach, 4), "plane_tol_m": round(float(tol), 4), "added_points": 0}
+        if reach <= 0:
+            return segment, roof, info
+        eligible = ~roof
+        may_join = ctx.point_data.get("edge_may_join_all" if o.edge_foliage_returns else "edge_may_join")
+        if may_join is not None:
+            eligible &= np.asarray(may_join) != 0
+        if height is not None:
+            eligible &= np.asarray(height) >= o.edge_min_height
+        grown = np.asarray(grow_roof_edges(cloud.xyz, knn, np.where(roof, segment, -1).astype(np.int32),
+                                           ctx.point_data["normal"], ctx.point_data["curvature"],
+                                           eligible.astype(np.uint8), reach=reach, tol=float(tol),
+                                           tilt=o.edge_tilt, planar_max=float(planar_max), rounds=o.edge_rounds,
+                                           min_support=required_planar_neighbours(o.edge_support, int(np.shape(knn)[1]))))
+        added = grown >= 0
+        info["added_points"] = int(np.count_nonzero(added) - np.count_nonzero(roof))
+        return np.where(added, grown, segment).astype(np.int32), added, info

@@ -16,9 +16,14 @@ the mean kappa from 0.82 to 0.88, five tiles up and one 0.949 -> 0.941; benchmar
 Isolated points (roadx_ti.isolation: a part of at most k points, more than 100 m from the rest)
 join no growth edge: their k neighbours lie across the gap, so neither their normal nor their edges
 say anything about a roof (a cloud without them grows exactly as before).
-Writes point_data 'roof_segment' (int32, compact ids, -1 = none) and, with the colour rule or
-returns on, 'vegetation' (uint8: COM > com_threshold, or such a foliage return) for roof_filter's
-annex and footprint tests.
+NIR (use_nir): where the cloud has colour and a NIR field whose values vary (LAS formats 8 and
+10; IGN Lidar HD tiles carry all-zero NIR), NDVI > ndvi_threshold marks a point vegetation-coloured
+too. info 'vegetation_cue' says which cues ran: 'rgb_com', 'ndvi', 'returns' joined by '+', or
+'none'.
+Writes point_data 'roof_segment' (int32, compact ids, -1 = none), 'edge_may_join' (uint8: no
+vegetation cue of this stage, colour or foliage return, and not isolated: the points roof_filter's
+edge completion may add), 'edge_may_join_all' (the same without the returns rule) and, with the colour rule or returns on, 'vegetation' (uint8: COM >
+com_threshold, or such a foliage return) for roof_filter's annex and footprint tests.
 """
 from __future__ import annotations
 
@@ -46,6 +51,12 @@ class RoofGrowingOptions(StageOptions):
         "colour, foliage itself is rough; null = no exemption")
     color_max: float = Field(30.0, gt=0, description="a vegetation-coloured point joins only a "
                              "neighbour closer than this in RGB (8-bit units)")
+    use_nir: bool = Field(True, description="when the cloud has colour and a NIR field whose values "
+                          "vary (LAS point formats 8 and 10): a point with NDVI above ndvi_threshold "
+                          "is vegetation-coloured too (beside the COM index)")
+    ndvi_threshold: float = Field(0.25, ge=-1, le=1, description="NDVI (NIR - red) / (NIR + red) above "
+                                  "which a point is vegetation (unitless; the usual 0.2-0.3 split between "
+                                  "vegetation and bare surfaces, not fitted to a tile)")
     use_returns: bool = Field(True, description="when the cloud has LiDAR return numbers: an "
                               "earlier return of a multi-return pulse (the laser went on through: "
                               "foliage) that is not planar (curvature at or above "
@@ -75,9 +86,19 @@ class RoofGrowing(Stage):
         colour = {}
         vegetation_points = None
         penetrated = cloud.penetrated() if o.use_returns else None
+        cues = []
+        ndvi_points = None
         if o.use_color and cloud.has_color:
             rgb = cloud.rgb8()
             vegetation = vegetation_mask(rgb, o.com_threshold)
+            cues.append("rgb_com")
+            ndvi = cloud.ndvi() if o.use_nir else None
+            if ndvi is not None:
+                by_ndvi = ndvi > o.ndvi_threshold
+                ndvi_points = int(np.count_nonzero(by_ndvi))
+                vegetation = (np.asarray(vegetation) != 0) | by_ndvi
+                cues.append("ndvi")
+            vegetation = np.asarray(vegetation, np.uint8)
             vegetation_points = int(np.count_nonzero(vegetation))
             colour = dict(rgb=rgb, vegetation=vegetation, color_max=o.color_max)
         elif o.use_color:
@@ -106,11 +127,23 @@ class RoofGrowing(Stage):
                                      expand_curvature_max=o.expand_curvature_max,
                                      active=None if isolated is None else (~isolated).astype(np.uint8))
         segment, count = relabel_compact(np.asarray(segment))
+        if penetrated is not None:
+            cues.append("returns")
         info = {"segments": int(count), "roof_points": int(np.count_nonzero(segment >= 0)),
-                "color_rule": bool(colour)}
+                "color_rule": bool(colour), "vegetation_cue": "+".join(cues) or "none"}
+        if ndvi_points is not None:
+            info["ndvi_vegetation"] = ndvi_points
         if vegetation_points is not None:
             info["vegetation_coloured"] = vegetation_points
-        point_data = {"roof_segment": segment}
+        # roof_filter's edge completion: points no vegetation cue or isolation keeps off a roof
+        may_join = np.ones(n, bool)
+        if "vegetation" in edge_colour:
+            may_join &= np.asarray(edge_colour["vegetation"]) == 0
+        may_join_all = may_join.copy() if isolated is None else may_join & ~isolated   # returns too
+        if active is not None:
+            may_join &= np.asarray(active) != 0
+        point_data = {"roof_segment": segment, "edge_may_join": may_join.astype(np.uint8),
+                      "edge_may_join_all": np.asarray(may_join_all, np.uint8)}
         if colour:
             point_data["vegetation"] = np.asarray(colour["vegetation"], np.uint8)
         if foliage_returns is not None:
@@ -119,3 +152,4 @@ class RoofGrowing(Stage):
                                         foliage_returns).astype(np.uint8)
             info["foliage_returns"] = int(np.count_nonzero(foliage_returns))
         return StageResult(point_data=point_data, segment_id=segment, info=info)
+

@@ -11,13 +11,15 @@ cloth_ground / cloth_smooth: the larger of 30 m and 15 x cloth_resolution (the c
 building from the terrain around it: a building cut by the window's edge loses that support, so the
 buffer covers buildings up to 60 m across; the stiffness carries the cloth's shape 15 particles);
 grid_slope: 4 x step; ransac_planes: ground_cell; color_growing: 20 x max_edge_distance;
-roof_seeds: 4 x r_max; roof_filter: 2 x sqrt(min_roof_area) (a roof must be whole to be measured);
+roof_seeds: 4 x r_max (1.5 m for 'auto'); roof_filter: 2 x sqrt(min_roof_area) (a roof must be whole to be measured);
 others: MIN_BUFFER."""
 
 
 def stage_reach(name: str, options) -> float:
     """How far (m) a stage's decision about a point depends on other points (see STAGE_REACH_DOC)."""
-    get = lambda key, default: float(getattr(options, key, default) or default)  # noqa: E731
+    def get(key, default):
+        value = getattr(options, key, default) or default
+        return default if isinstance(value, str) else float(value)   # 'auto': follows the estimates
     reach = {
         "cloth_ground": lambda: max(CLOTH_SPAN, 15.0 * get("cloth_resolution", 1.0)),
         "cloth_smooth": lambda: max(CLOTH_SPAN, 15.0 * get("cloth_resolution", 2.0)),

@@ -81,7 +81,7 @@ def concat_clouds(clouds: list[Cloud], origin: np.ndarray) -> Cloud:
     return Cloud(xyz=np.concatenate([c.xyz for c in clouds]), origin=origin, rgb=rgb,
                  color_depth=max(c.color_depth for c in clouds) if rgb is not None else 0,
                  intensity=pick("intensity"), classification=pick("classification"),
-                 returns=pick("returns"), source="+".join(c.source for c in clouds))
+                 returns=pick("returns"), nir=pick("nir"), source="+".join(c.source for c in clouds))
 
 
 def _inside(x, y, box) -> np.ndarray:
