@@ -109,6 +109,7 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
 
     from roadx_ti import io
     from roadx_ti.kernels.downsample import hashed_sample
+    from roadx_ti.ordering import canonical_order
     from roadx_ti.stages.downsample import coordinate_cells
 
     total = sum(f.count for f in files)
@@ -121,7 +122,8 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
     def take(world, rgb, returns):
         local = (world - read_origin).astype(np.float32)
         cells.append(np.unique(_cell_keys(world[:, :2], AREA_CELL)))
-        pick = hashed_sample(coordinate_cells(local, read_origin, 0.01), ratio).astype(bool)
+        # the hash of the exact world coordinates (not float32 local ones: exact at any distance)
+        pick = hashed_sample(coordinate_cells(world, np.zeros(3), 0.01), ratio).astype(bool)
         xyz_parts.append(local[pick])
         rgb_parts.append(None if rgb is None else rgb[pick])
         return_parts.append(None if returns is None else returns[pick])
@@ -137,6 +139,7 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
                     returns = np.column_stack([np.asarray(record.return_number),
                                                np.asarray(record.number_of_returns)]).astype(np.uint8)
                     take(world, rgb, returns)
+            cells[:] = [np.unique(np.concatenate(cells))]   # occupied cells so far, once each
         else:     # COPC (its chunks are not seekable by point) and the other formats: read whole
             cloud = io.read(f.path, origin=read_origin)
             take(cloud.world_xyz(), cloud.rgb, cloud.returns)
@@ -148,6 +151,9 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
         rgb = rgb if rgb.any() else None
     returns = np.concatenate(return_parts) if all(r is not None for r in return_parts) else None
     sample = Cloud(xyz=np.concatenate(xyz_parts), origin=read_origin, rgb=rgb, returns=returns)
+    # in canonical order, so that measure's own subsample does not follow the files' point order
+    order = canonical_order(sample)
+    sample = sample if order is None else sample.subset(order)
     out = measure(sample, survey_points=total, area=area)
     out["sample_points"] = int(sample.n)
     out["area_cell_m"] = AREA_CELL

@@ -1,9 +1,11 @@
 """The canonical point order the pipelines run in, so that results do not depend on the order in
 which a file delivers its points.
 
-Points are sorted by plan block of BLOCK m (neighbours stay close in memory for the kernels), then
-by x, y and z, then by their attributes; only points equal in all of these keep their input order
-among themselves, and they are interchangeable.
+Points are sorted by plan block of BLOCK m of the local coordinates (neighbours stay close in
+memory for the kernels), then by x, y and z, then by their attributes (other dimensions, returns, colour,
+NIR, classes, intensity); only points equal in all of these keep their input order among
+themselves. They are interchangeable for the stages; should two of them end with different
+labels, which input record gets which follows the input order.
 """
 from __future__ import annotations
 
@@ -54,10 +56,15 @@ def canonical_order(cloud) -> np.ndarray | None:
 def _attribute_keys(cloud):
     """Per-point attribute columns, least significant first."""
     keys = []
-    for a in (cloud.returns, cloud.rgb):
-        if a is not None:
-            keys += [a[:, c] for c in range(a.shape[1] - 1, -1, -1)]
-    for a in (cloud.classification, cloud.intensity):
-        if a is not None:
+    columns = [cloud.attributes[name] for name in sorted(cloud.attributes)]
+    columns += [cloud.returns, cloud.rgb, getattr(cloud, "nir", None), cloud.classification, cloud.intensity]
+    for a in columns:
+        if a is None:
+            continue
+        a = np.asarray(a)
+        if a.ndim == 1:
             keys.append(a)
+        else:
+            flat = a.reshape(len(a), -1)
+            keys += [flat[:, c] for c in range(flat.shape[1] - 1, -1, -1)]
     return keys

@@ -92,3 +92,15 @@ def test_hashed_pattern_keeps_the_same_points_at_another_origin_and_from_1mm_or_
     assert np.mean(kept(cm, np.floor(cm.min(axis=0))) == exact) > 0.97
     mm = np.round(world, 3)
     assert np.mean(kept(mm, np.floor(mm.min(axis=0))) == exact) > 0.97
+
+
+def test_hashed_pattern_keeps_a_point_of_a_tiny_cloud():
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.downsample import UniformDownsample
+
+    xyz = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0.5, 0.5, 0]], np.float32)
+    for ratio in (0.01, 0.05, 0.1):      # each point kept with this probability: often none
+        keep = UniformDownsample({"ratio": ratio, "pattern": "hashed"}).run(
+            Cloud(xyz=xyz, origin=np.zeros(3)), StageContext()).keep
+        assert keep.sum() >= 1

@@ -20,7 +20,7 @@ def _files(tmp_path, scene, name, order):
     return catalog(paths)
 
 
-def test_catalog_estimates_equal_the_whole_survey_and_ignore_point_order(tmp_path):
+def test_catalog_estimates_equal_the_whole_survey_and_ignore_point_order(tmp_path, monkeypatch):
     scene = synthetic.generate("uav-road", 120_000, seed=4)
     whole = measure(scene)
     # the generator writes object by object: runs of consecutive points are not a spatial sample
@@ -34,3 +34,11 @@ def test_catalog_estimates_equal_the_whole_survey_and_ignore_point_order(tmp_pat
         assert abs(survey[key] / whole[key] - 1) < tolerance, (key, survey[key], whole[key])
     shuffled = _files(tmp_path, scene, "b", np.random.default_rng(2).permutation(scene.n))
     assert measure_catalog(shuffled, origin) == survey
+    # a sample smaller than the survey (40 k of 120 k), and measure's own subsample of it (10 k
+    # here; 200 k of a 400 k sample by default), do not follow the point order either
+    from functools import partial
+
+    from roadx_ti import estimates
+    monkeypatch.setattr(estimates, "measure", partial(estimates.measure, sample_points=10_000))
+    small = measure_catalog(files, origin, sample_points=40_000)
+    assert measure_catalog(shuffled, origin, sample_points=40_000) == small

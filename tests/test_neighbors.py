@@ -206,3 +206,27 @@ def test_nearest_ndarrays_and_empty(ti_arch):
         neighbors.nearest(np.zeros((0, 3), np.float32), xyz)
     with pytest.raises(ValueError, match="queries must have shape"):
         neighbors.nearest(xyz, xyz[:, :2])
+
+
+@pytest.mark.xfail(reason="known defect: on lavapipe the GPU block search returns wrong rows for a few "
+                   "isolated points, depending on the other queries of the dispatch (tests/test_determinism.py)",
+                   strict=False)
+def test_knn_isolated_points_of_a_street_scene_on_vulkan(tmp_path):
+    """The 20 k-point street scene of tests/test_determinism.py in canonical order: its isolated high
+    points (neighbours 4-7 m away) against cKDTree on Vulkan (measured: 2 rows wrong; right when
+    the same queries are dispatched alone; the CPU path is right)."""
+    from scipy.spatial import cKDTree
+
+    from cli_helpers import synth
+    from roadx_ti import io
+    from roadx_ti.kernels.neighbors import knn
+    from roadx_ti.ordering import canonical_order
+    from tests.conftest import switch_backend
+
+    switch_backend("vulkan")
+    cloud = io.read(synth(tmp_path / "road.laz", points="20k", seed=5))
+    cloud = cloud.subset(canonical_order(cloud))
+    want, _ = cKDTree(cloud.xyz.astype(np.float64)).query(cloud.xyz.astype(np.float64), 21)
+    _, dist = knn(cloud.xyz, 20)
+    wrong = np.flatnonzero((np.abs(np.asarray(dist) - want[:, 1:]) > 1e-4).any(axis=1))
+    assert len(wrong) == 0, f"{len(wrong)} rows wrong: {wrong[:10]}"

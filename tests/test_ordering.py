@@ -19,12 +19,17 @@ def test_any_permutation_gives_the_same_sequence_ties_included():
     xyz = (rng.random((5000, 3)) * [30, 30, 2]).astype(np.float32)
     xyz[1000:1100] = xyz[:100]                    # exact duplicates in position ...
     rgb = rng.integers(0, 65535, (5000, 3)).astype(np.uint16)
-    cloud = Cloud(xyz=xyz, origin=np.zeros(3), rgb=rgb, intensity=rng.integers(0, 999, 5000).astype(np.uint16))
+    rgb[1000:1050] = rgb[:50]                     # ... some with the same colour too, told apart
+    nir = rng.integers(0, 65535, 5000).astype(np.uint16)   # by their NIR or another dimension
+    cloud = Cloud(xyz=xyz, origin=np.zeros(3), rgb=rgb, intensity=np.zeros(5000, np.uint16), nir=nir,
+                  attributes={"gps_time": rng.random(5000)})
     first = _canonical(cloud)
     for seed in (1, 2):
         again = _canonical(cloud.subset(np.random.default_rng(seed).permutation(cloud.n)))
         np.testing.assert_array_equal(again.xyz, first.xyz)
-        np.testing.assert_array_equal(again.rgb, first.rgb)          # ... ordered by their colour
+        np.testing.assert_array_equal(again.rgb, first.rgb)          # ... ordered by their attributes
+        np.testing.assert_array_equal(again.nir, first.nir)
+        np.testing.assert_array_equal(again.attributes["gps_time"], first.attributes["gps_time"])
     assert canonical_order(first) is None                            # canonical stays canonical
 
 

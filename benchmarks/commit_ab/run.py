@@ -6,7 +6,8 @@
 
 ``--base-tree`` is a checkout of the base commit with its own environment (``./dev setup`` there:
 ``.venv`` inside it), so that each side imports its own code and kernels; this checkout is the
-other side. The scene is generated once by this checkout (the same file for both). Each run is a
+other side; a relative ``--config`` is each checkout's own file (each side runs its own
+configuration of that name). The scene is generated once by this checkout (the same file for both). Each run is a
 fresh child process under GNU time (its own first-call compile, warm offline cache); rounds alternate base, new,
 base, new ... so that the shared machine's load drifts over both alike. Writes
 ``ab-<points>.json`` and prints medians and per-round ratios (benchmarks/RESULTS.md quotes them).
@@ -33,7 +34,8 @@ def _count(text: str) -> int:
 
 
 def _commit(tree: Path) -> str:
-    return subprocess.run(["git", "-C", str(tree), "rev-parse", "--short", "HEAD"], capture_output=True,
+    # --dirty: a tree with uncommitted changes is not the commit it names
+    return subprocess.run(["git", "-C", str(tree), "describe", "--always", "--dirty"], capture_output=True,
                           text=True, check=True).stdout.strip()
 
 

@@ -31,7 +31,7 @@ class UniformOptions(StageOptions):
         "R1); nested: point i is kept when frac(0.618.. i) < ratio, so that a slightly different "
         "ratio keeps nearly the same points; hashed: a point is kept when a hash of its coordinates "
         "(in cells of `hash_cell`) is below the ratio: nested too, and the same points whatever "
-        "their order or tiling (kernels/downsample.py)")
+        "their order or tiling; the count kept is a draw around the target (kernels/downsample.py)")
     hash_cell: float = Field(0.01, gt=0, description="m: coordinate quantum of the hashed pattern; cell "
                              "boundaries sit a quarter millimetre off the half-cell so that deliveries at "
                              "1 cm and at 1 mm keep nearly all the same points")
@@ -67,8 +67,11 @@ class UniformDownsample(Stage):
 
         def sample(xyz):
             if o.pattern == "hashed":
-                return np.flatnonzero(hashed_sample(coordinate_cells(xyz, cloud.origin, o.hash_cell),
+                kept = np.flatnonzero(hashed_sample(coordinate_cells(xyz, cloud.origin, o.hash_cell),
                                                     min(target, n) / max(n, 1)))
+                # the count is a draw: a few points at a small ratio may all miss; keep the first
+                # (the canonical order's: roadx_ti.ordering) rather than none
+                return kept if len(kept) or not len(xyz) else np.zeros(1, np.int64)
             if o.pattern == "nested":
                 return np.flatnonzero(nested_sample(len(xyz), min(target, n) / max(n, 1)))
             return uniform_sample(xyz, min(target, n))[0]
@@ -87,8 +90,10 @@ HASH_OFFSET = 0.00025   # m: boundaries this far below each half cell, off any 1
 def coordinate_cells(xyz: np.ndarray, origin: np.ndarray, cell: float) -> np.ndarray:
     """(n, 3) uint32: the low 32 bits of each world coordinate's cell number, cells of ``cell`` m
     centred on its multiples (boundaries HASH_OFFSET below the half cell): float64 world
-    coordinates from the float32 local ones, whose error (< 0.1 mm within 1 km of the origin)
-    stays inside the offset for coordinates delivered on a 1 mm or coarser grid."""
+    coordinates from the float32 local ones, whose error (< 0.1 mm within 2 km of the origin,
+    < 0.25 mm within 8 km) stays inside the offset for coordinates delivered on a 1 mm or coarser
+    grid; farther from the local origin some points fall on the other side of a cell boundary.
+    Exact world coordinates (float64 ``xyz`` with a zero origin) are exact at any distance."""
     world = np.asarray(xyz, np.float64) + np.asarray(origin, np.float64)
     number = np.floor(world / cell + (0.5 + HASH_OFFSET / cell))
     return (number.astype(np.int64) & 0xFFFFFFFF).astype(np.uint32)
