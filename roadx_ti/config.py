@@ -115,7 +115,10 @@ class RunConfig(_Strict):
         return stages
 
     def stage_list(self):
-        """(name, options object) per stage, options validated by the stage's own model."""
+        """(name, options object) per stage, options validated by the stage's own model and the
+        stage order checked (Stage.requires / provides)."""
+        from roadx_ti.stages.base import StageOrderError, check_order
+
         out = []
         for i, entry in enumerate(self.stages):
             (name, opts), = entry.items()
@@ -126,6 +129,10 @@ class RunConfig(_Strict):
                 raise ConfigError(_one_line(exc, prefix=f"stages[{i}].{name}")) from None
             except TypeError:
                 raise ConfigError(f"stages[{i}].{name}: options must be a mapping, got {opts!r}") from None
+        try:
+            check_order(stage_class(name) for name, _ in out)
+        except StageOrderError as exc:
+            raise ConfigError(f"config error: {exc}") from None
         return out
 
     @field_validator("memory_limit")

@@ -17,7 +17,7 @@ import numpy as np
 from roadx_ti.cloud import Cloud
 from roadx_ti.ordering import canonical_order
 from roadx_ti.stages import stage_class
-from roadx_ti.stages.base import CLASS_OTHER, ESTIMATES, StageContext
+from roadx_ti.stages.base import CLASS_OTHER, ESTIMATES, StageContext, check_order
 
 log = logging.getLogger("roadx_ti")
 
@@ -42,8 +42,11 @@ class PipelineResult:
 
 
 def build_stages(stage_specs):
-    """[(name, options)] -> stage objects."""
-    return [stage_class(name)(options) for name, options in stage_specs]
+    """[(name, options)] -> stage objects; raises StageOrderError (one line) when a stage requires
+    data no earlier stage provides (Stage.requires / provides), before any work."""
+    classes = [stage_class(name) for name, _ in stage_specs]
+    check_order(classes)
+    return [cls(options) for cls, (_, options) in zip(classes, stage_specs)]
 
 
 def default_stage_specs(pipeline: str):

@@ -14,7 +14,7 @@ from pydantic import Field
 
 from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
-from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
+from roadx_ti.stages.base import MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
 
 
 class SorOptions(StageOptions):
@@ -31,6 +31,10 @@ class SorOptions(StageOptions):
 class StatisticalOutlierRemoval(Stage):
     name = "sor"
     Options = SorOptions
+
+    @classmethod
+    def reach(cls, options, estimates=None) -> float:
+        return MIN_BUFFER     # a point's k nearest neighbours (mu and sigma are per cloud, not spatial)
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         from roadx_ti.kernels.outliers import sor_keep

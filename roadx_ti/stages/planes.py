@@ -82,6 +82,10 @@ class RansacPlanes(Stage):
     name = "ransac_planes"
     Options = RansacOptions
 
+    @classmethod
+    def reach(cls, options, estimates=None) -> float:
+        return float(options.ground_cell)    # the ground reference: 3 x 3 cells around a point's cell
+
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         from roadx_ti.kernels.ransac import fit_plane
 
