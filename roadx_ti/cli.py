@@ -246,7 +246,7 @@ def cmd_run(args) -> int:
     if cfg.dtm_path() is not None:
         _make_parent(cfg.dtm_path())
         io.check_output_path(cfg.dtm_path(), cfg.input.paths)
-    stage_specs = cfg.stage_list() or pipelines.default_stage_specs(cfg.pipeline)
+    stage_specs = cfg.pipeline_stages()     # the option objects config validation built
 
     t0 = time.perf_counter()
     if cfg.input.synthetic is not None and not cfg.input.paths:

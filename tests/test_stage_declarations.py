@@ -77,6 +77,17 @@ def test_wrong_stage_order_stops_the_cli_before_reading_the_input(tmp_path, caps
     assert not (tmp_path / "x.laz").exists()
 
 
+def test_stage_options_are_built_once():
+    cfg = config.from_mapping({"pipeline": "road", "stages": [{"sor": {"k": 30}}, {"grid_slope": {}}]})
+    first, second = cfg.stage_list(), cfg.stage_list()
+    assert all(a is b for (_, a), (_, b) in zip(first, second))
+    assert first[0][1].k == 30
+    # a run uses those objects (the CLI and the tiling through pipeline_stages)
+    assert all(a is b for (_, a), (_, b) in zip(cfg.pipeline_stages(), first))
+    defaults = config.from_mapping({"pipeline": "roof"}).pipeline_stages()
+    assert [name for name, _ in defaults] == pipelines.DEFAULT_STAGES["roof"]
+
+
 class _Grid:
     """A flat grid at height ``z`` over [x0, x0 + (cols - 1) res] x [y0, y0 + (rows - 1) res]."""
 
