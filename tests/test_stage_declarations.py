@@ -88,6 +88,32 @@ def test_stage_options_are_built_once():
     assert [name for name, _ in defaults] == pipelines.DEFAULT_STAGES["roof"]
 
 
+def test_limits_and_defaults_have_one_home():
+    import inspect
+
+    from roadx_ti.kernels.cloth import csf
+    from roadx_ti.kernels.neighbors import MAX_K
+    from roadx_ti.kernels.outliers import sor_keep
+    from roadx_ti.kernels.ransac import fit_plane
+    from roadx_ti.kernels.regions import MAX_ROW
+
+    sor = stage_class("sor").Options
+    sor(k=MAX_K)
+    with pytest.raises(ValueError):
+        sor(k=MAX_K + 1)
+    assert sor().mode == inspect.signature(sor_keep).parameters["mode"].default
+    regions = stage_class("road_regions").Options
+    regions(k=MAX_ROW - 1)
+    with pytest.raises(ValueError):
+        regions(k=MAX_ROW)
+    cloth = stage_class("cloth_ground").Options()
+    for name, parameter in inspect.signature(csf).parameters.items():
+        if name in type(cloth).model_fields:
+            assert getattr(cloth, name) == parameter.default, name
+    assert stage_class("ransac_planes").Options().hypotheses == \
+        inspect.signature(fit_plane).parameters["hypotheses"].default
+
+
 class _Grid:
     """A flat grid at height ``z`` over [x0, x0 + (cols - 1) res] x [y0, y0 + (rows - 1) res]."""
 

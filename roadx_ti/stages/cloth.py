@@ -13,6 +13,7 @@ run with one line naming its extent and cloth_resolution.
 """
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,17 +37,22 @@ CLOTH_SPAN = 30.0
 CLOTH_STIFFNESS_PARTICLES = 15   # the cloth's stiffness carries its shape this many particles
 
 
+# the `cloth-simulation-filter` package's defaults, defined once: the kernel's signature
+_CSF = {name: p.default for name, p in inspect.signature(csf).parameters.items()}
+
+
 class ClothOptions(StageOptions):
-    cloth_resolution: float = Field(0.5, gt=0, description="C_r: particle spacing of the cloth (m)")
-    rigidness: int = Field(3, ge=1, le=3, description="cloth stiffness, 1 (steep terrain) .. "
-                           "3 (flat, urban) (constraint passes as in the CSF package)")
-    time_step: float = Field(0.65, gt=0, description="simulation time step (dimensionless, "
-                             "the package's default 0.65)")
-    iterations: int = Field(500, ge=1, description="C_n: maximum simulation iterations (count)")
-    class_threshold: float = Field(0.5, gt=0, description="C_t: a point within this distance of "
-                                   "the cloth is ground (m)")
-    slope_smooth: bool = Field(False, description="the package's bSloopSmooth post-processing of "
-                               "steep slopes")
+    cloth_resolution: float = Field(_CSF["cloth_resolution"], gt=0, description="C_r: particle spacing "
+                                    "of the cloth (m)")
+    rigidness: int = Field(_CSF["rigidness"], ge=1, le=3, description="cloth stiffness, 1 (steep "
+                           "terrain) .. 3 (flat, urban) (constraint passes as in the CSF package)")
+    time_step: float = Field(_CSF["time_step"], gt=0, description="simulation time step (dimensionless, "
+                             "the package's default)")
+    iterations: int = Field(_CSF["iterations"], ge=1, description="C_n: maximum simulation iterations (count)")
+    class_threshold: float = Field(_CSF["class_threshold"], gt=0, description="C_t: a point within this "
+                                   "distance of the cloth is ground (m)")
+    slope_smooth: bool = Field(_CSF["slope_smooth"], description="the package's bSloopSmooth "
+                               "post-processing of steep slopes")
 
 
     align_to_world: bool = Field(True, description="lay the particles and the simulation's bands on "
