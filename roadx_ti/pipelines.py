@@ -39,6 +39,9 @@ class PipelineResult:
     stages: list = field(default_factory=list)   # per-stage summary rows
     seconds: float = 0.0
     estimates: dict = field(default_factory=dict)   # survey-wide estimates the stages used
+    # per input point, the point data the stages declare in Stage.writes (float32, NaN where the
+    # stage did not see the point), for the output's extra dimensions
+    extra_dims: dict = field(default_factory=dict)
 
 
 def build_stages(stage_specs):
@@ -69,11 +72,13 @@ def run(cloud: Cloud, stages, *, ctx: StageContext | None = None, truth: np.ndar
         return _run(cloud, stages, ctx, truth, default_class, progress, target_class)
     result = _run(cloud.subset(order), stages, ctx, None if truth is None else np.asarray(truth)[order],
                   default_class, progress, target_class)
+    def back(ordered):
+        out = np.empty_like(ordered)
+        out[order] = ordered
+        return out
     for name in ("classification", "decided_by", "segment_id", "processed"):
-        ordered = getattr(result, name)
-        back = np.empty_like(ordered)
-        back[order] = ordered
-        setattr(result, name, back)
+        setattr(result, name, back(getattr(result, name)))
+    result.extra_dims = {name: back(values) for name, values in result.extra_dims.items()}
     return result
 
 
@@ -89,6 +94,7 @@ def _run(cloud, stages, ctx, truth, default_class, progress, target_class) -> Pi
     segment_id = np.full(n, -1, np.int32)
     processed = np.ones(n, bool)
     working = np.arange(n, dtype=np.int64)
+    extra_dims = {}
     rows = []
     t_start = time.perf_counter()
     for number, stage in enumerate(stages, start=1):
@@ -120,6 +126,9 @@ def _run(cloud, stages, ctx, truth, default_class, progress, target_class) -> Pi
                 row["labelled_other"] = int((~working_truth & given).sum())
         for key, values in result.point_data.items():
             ctx.point_data[key] = values
+        for key in getattr(stage, "writes", ()):
+            if key in result.point_data:
+                extra_dims.setdefault(key, np.full(n, np.nan, np.float32))[working] = result.point_data[key]
         if result.keep is not None:
             keep = np.asarray(result.keep, bool)
             removed = working[~keep]
@@ -142,7 +151,7 @@ def _run(cloud, stages, ctx, truth, default_class, progress, target_class) -> Pi
     if not processed.all():
         _transfer_labels(cloud, processed, classification, decided_by, segment_id)
     return PipelineResult(classification, decided_by, segment_id, processed, rows,
-                          time.perf_counter() - t_start, dict(ctx.facts[ESTIMATES]))
+                          time.perf_counter() - t_start, dict(ctx.facts[ESTIMATES]), extra_dims)
 
 
 def _transfer_labels(cloud, processed, classification, decided_by, segment_id):

@@ -133,3 +133,30 @@ def test_ground_surface_of_several_parts():
     np.testing.assert_array_equal(got[:2], [2.0, 2.5])
     assert np.isnan(got[2])                       # under no part's grid
     np.testing.assert_array_equal(GroundSurface(a, np.zeros(3), [a]).height_above(xyz), [2.0, 6.5, -1.0])
+
+
+def test_declared_point_data_reaches_the_output_per_input_point():
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageResult
+
+    class Thin(Stage):
+        name = "thin"
+
+        def run(self, cloud, ctx):
+            return StageResult(keep=np.arange(cloud.n) % 2 == 0)
+
+    class Writer(Stage):
+        name = "writer"
+        writes = ("z_copy",)
+
+        def run(self, cloud, ctx):
+            return StageResult(point_data={"z_copy": cloud.xyz[:, 2].copy(), "not_written": cloud.xyz[:, 0]})
+
+    rng = np.random.default_rng(0)
+    xyz = rng.uniform(0, 50, (2000, 3)).astype(np.float32)
+    result = pipelines.run(Cloud(xyz=xyz, origin=np.zeros(3)), [Thin(), Writer()])
+    assert set(result.extra_dims) == {"z_copy"}
+    z = result.extra_dims["z_copy"]
+    seen = result.decided_by == 0
+    np.testing.assert_array_equal(z[seen], xyz[seen, 2])
+    assert np.isnan(z[~seen]).all() and seen.sum() == 1000

@@ -7,6 +7,7 @@ A Stage subclass declares:
 - ``requires`` / ``provides``: the per-point data (``ctx.point_data`` / ``StageResult.point_data``
   keys, and GROUND_SURFACE) it reads from earlier stages and hands on; ``check_order`` checks them
   when the pipeline is built, before any input is read;
+- ``writes``: the per-point data of its own that the output carries as extra dimensions;
 - a ground stage provides GROUND_SURFACE: ``export_ground`` puts its surface in ctx.facts, and the
   DTM export (output.dtm) and later stages (height_above_ground) read it from there.
 
@@ -118,14 +119,17 @@ class StageContext:
 
 
 class Stage:
-    """Subclass with ``name``, ``Options``, ``reach``, ``run`` and, where it applies, ``requires``
-    and ``provides`` (see the module's docstring; the README's CONTRIBUTING recipe)."""
+    """Subclass with ``name``, ``Options``, ``reach``, ``run`` and, where it applies, ``requires``,
+    ``provides`` and ``writes`` (see the module's docstring; the README's CONTRIBUTING recipe)."""
     name: ClassVar[str] = ""
     Options: ClassVar[type[StageOptions]] = StageOptions
     # point_data keys (or GROUND_SURFACE) that an earlier stage must provide
     requires: ClassVar[tuple[str, ...]] = ()
     # point_data keys (or GROUND_SURFACE) that every result of this stage carries
     provides: ClassVar[tuple[str, ...]] = ()
+    # point_data keys of this stage's result written to the output as extra dimensions (untiled
+    # runs; float32, NaN for a point the stage did not see)
+    writes: ClassVar[tuple[str, ...]] = ()
 
     @classmethod
     def reach(cls, options: StageOptions, estimates: dict | None = None) -> float:
