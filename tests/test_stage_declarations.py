@@ -132,7 +132,8 @@ def test_ground_surface_of_several_parts():
     got = surface.height_above(xyz)
     np.testing.assert_array_equal(got[:2], [2.0, 2.5])
     assert np.isnan(got[2])                       # under no part's grid
-    np.testing.assert_array_equal(GroundSurface(a, np.zeros(3), [a]).height_above(xyz), [2.0, 6.5, -1.0])
+    one = GroundSurface(a, np.zeros(3), [a]).height_above(xyz)
+    assert one[0] == 2.0 and np.isnan(one[1:]).all()
 
 
 def test_declared_point_data_reaches_the_output_per_input_point():

@@ -90,12 +90,11 @@ class GroundSurface:
 
     def height_above(self, xyz: np.ndarray) -> np.ndarray:
         """float32 (n,): z minus the surface under each point (local coordinates of the cloud the
-        surface was made on); a point under no part's grid gets NaN."""
-        if len(self.parts) <= 1:
-            return np.asarray(self.largest.height_above(xyz), np.float32)
+        surface was made on); a point under no part's grid (an isolated point, which no cloth lies
+        under) gets NaN, not the grid's border height."""
         out = np.full(len(xyz), np.nan, np.float32)
         left = np.ones(len(xyz), bool)
-        for grid in self.parts:
+        for grid in self.parts or [self.largest]:
             rows, cols = grid.cloth_z.shape
             x = (xyz[:, 0] - grid.x0) / grid.resolution
             y = (xyz[:, 1] - grid.y0) / grid.resolution
