@@ -213,7 +213,7 @@ def _output_paths(out: Path) -> dict:
 
 def cmd_run(args) -> int:
     from roadx_ti import backend, config, io, pipelines
-    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.base import GROUND_SURFACE, StageContext
 
     overrides = list(args.set)
     for flag, key in (("workers", "executor.workers"), ("scheduler", "executor.scheduler"),
@@ -246,7 +246,7 @@ def cmd_run(args) -> int:
     if cfg.dtm_path() is not None:
         _make_parent(cfg.dtm_path())
         io.check_output_path(cfg.dtm_path(), cfg.input.paths)
-    stage_specs = cfg.stage_list() or pipelines.default_stage_specs(cfg.pipeline)
+    stage_specs = cfg.pipeline_stages()     # the option objects config validation built
 
     t0 = time.perf_counter()
     if cfg.input.synthetic is not None and not cfg.input.paths:
@@ -289,7 +289,8 @@ def cmd_run(args) -> int:
     subset = None if cfg.output.points == "all" else result.processed
     t1 = time.perf_counter()
     io.write(out, cloud, classification=result.classification,
-             extra_dims={"roadx_label": result.decided_by, "segment_id": result.segment_id}, subset=subset)
+             extra_dims={"roadx_label": result.decided_by, "segment_id": result.segment_id, **result.extra_dims},
+             subset=subset)
     write_s = time.perf_counter() - t1
     paths = _output_paths(out)
     summary = {
@@ -311,14 +312,15 @@ def cmd_run(args) -> int:
                  cfg.truth_classes, 100 * acc["type1"], 100 * acc["type2"], 100 * acc["total"], acc["kappa"])
     dtm_path = cfg.dtm_path()
     if dtm_path is not None:
-        if "cloth" not in ctx.facts:
+        surface = ctx.facts.get(GROUND_SURFACE)
+        if surface is None:
             if cfg.output.dtm is not None:
-                log.warning("output.dtm: no cloth stage ran, so there is no DTM to write")
+                log.warning("output.dtm: no ground stage ran, so there is no DTM to write")
         else:
-            if ctx.facts.get("cloth_parts", 1) > 1:
+            if len(surface.parts) > 1:
                 log.warning("output.dtm: the cloud is %d parts more than 100 m apart; the DTM covers the "
-                            "largest (a raster over all would be sized by the gaps)", ctx.facts["cloth_parts"])
-            summary["dtm"] = _write_dtm(dtm_path, ctx.facts["cloth"], cloud)
+                            "largest (a raster over all would be sized by the gaps)", len(surface.parts))
+            summary["dtm"] = _write_dtm(dtm_path, surface, cloud)
     from roadx_ti import report
     jsonio.write(paths["summary"], summary)
     with io.atomic_output(paths["config"]) as tmp:
@@ -339,12 +341,13 @@ def _scene_name(cfg, cloud) -> str:
     return f"synthetic {s.kind} scene, {s.points:,} points, seed {s.seed}"
 
 
-def _write_dtm(path: Path, cloth, cloud) -> dict:
-    """The cloth as a DTM raster over the occupied space, with the input's CRS."""
+def _write_dtm(path: Path, surface, cloud) -> dict:
+    """The ground surface (stages.base.GroundSurface) as a DTM raster over the occupied space, with
+    the input's CRS."""
     from roadx_ti import dtm
     from roadx_ti.io import crs as io_crs
 
-    result, origin = cloth
+    result, origin = surface.largest, surface.origin
     crs = io_crs.of_cloud(cloud)
     if crs is None and path.suffix.lower() != ".npy":
         log.warning("%s: the input has no CRS, so the DTM carries none", path)
@@ -440,6 +443,11 @@ def _run_tiled(cfg, out: Path, args) -> int:
         raise config.ConfigError("config error: input: tiled runs read files; give input.paths or --input")
     if cfg.output.dtm not in (None, False):
         log.warning("output.dtm: tiled runs write no DTM (each tile has its own cloth); run untiled for one")
+    from roadx_ti.stages import stage_class
+    unwritten = [key for name, _ in cfg.pipeline_stages() for key in stage_class(name).writes]
+    if unwritten:
+        log.warning("tiled runs do not write %s yet (stage outputs of untiled runs); run untiled for them",
+                    ", ".join(unwritten))
     if cfg.output.mode == "merged":
         from roadx_ti.io.copc import is_copc_path
         if is_copc_path(out):

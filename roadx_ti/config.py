@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any, Literal, Union
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
 
 from roadx_ti import backend as _backend
 from roadx_ti.dtm import FORMATS as DTM_FORMATS
@@ -102,6 +102,8 @@ class RunConfig(_Strict):
     tiling: TilingConfig = Field(default_factory=TilingConfig)
     executor: ExecutorConfig = Field(default_factory=ExecutorConfig)
     stages: list[dict[str, Any]] = Field(default_factory=list)
+    # (name, options object) per stage: built once, by stage_list (from_mapping calls it)
+    _stage_specs: list | None = PrivateAttr(default=None)
 
     @field_validator("stages")
     @classmethod
@@ -115,7 +117,23 @@ class RunConfig(_Strict):
         return stages
 
     def stage_list(self):
-        """(name, options object) per stage, options validated by the stage's own model."""
+        """(name, options object) per stage, options validated by the stage's own model and the
+        stage order checked (Stage.requires / provides); built once, on first call (from_mapping
+        makes that call, before any work), and the same objects returned after."""
+        if self._stage_specs is None:
+            self._stage_specs = self._build_stage_list()
+        return list(self._stage_specs)
+
+    def pipeline_stages(self):
+        """The stages a run of this config runs: stage_list(), or the pipeline's defaults
+        (pipelines.DEFAULT_STAGES) when the config lists none."""
+        from roadx_ti import pipelines
+
+        return self.stage_list() or pipelines.default_stage_specs(self.pipeline)
+
+    def _build_stage_list(self):
+        from roadx_ti.stages.base import StageOrderError, check_order
+
         out = []
         for i, entry in enumerate(self.stages):
             (name, opts), = entry.items()
@@ -126,6 +144,10 @@ class RunConfig(_Strict):
                 raise ConfigError(_one_line(exc, prefix=f"stages[{i}].{name}")) from None
             except TypeError:
                 raise ConfigError(f"stages[{i}].{name}: options must be a mapping, got {opts!r}") from None
+        try:
+            check_order(stage_class(name) for name, _ in out)
+        except StageOrderError as exc:
+            raise ConfigError(f"config error: {exc}") from None
         return out
 
     @field_validator("memory_limit")
@@ -270,7 +292,7 @@ def from_mapping(raw: dict, overrides: list[str] = ()) -> RunConfig:
         cfg = RunConfig(**raw)
     except ValidationError as exc:
         raise ConfigError(_one_line(exc)) from None
-    cfg.stage_list()  # validate every stage's options now, before any work starts
+    cfg.stage_list()  # build and validate every stage's options now, before any work starts
     return cfg
 
 

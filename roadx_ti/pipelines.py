@@ -17,7 +17,7 @@ import numpy as np
 from roadx_ti.cloud import Cloud
 from roadx_ti.ordering import canonical_order
 from roadx_ti.stages import stage_class
-from roadx_ti.stages.base import CLASS_OTHER, ESTIMATES, StageContext
+from roadx_ti.stages.base import CLASS_OTHER, ESTIMATES, StageContext, check_order
 
 log = logging.getLogger("roadx_ti")
 
@@ -39,11 +39,17 @@ class PipelineResult:
     stages: list = field(default_factory=list)   # per-stage summary rows
     seconds: float = 0.0
     estimates: dict = field(default_factory=dict)   # survey-wide estimates the stages used
+    # per input point, the point data the stages declare in Stage.writes (float32, NaN where the
+    # stage did not see the point), for the output's extra dimensions
+    extra_dims: dict = field(default_factory=dict)
 
 
 def build_stages(stage_specs):
-    """[(name, options)] -> stage objects."""
-    return [stage_class(name)(options) for name, options in stage_specs]
+    """[(name, options)] -> stage objects; raises StageOrderError (one line) when a stage requires
+    data no earlier stage provides (Stage.requires / provides), before any work."""
+    classes = [stage_class(name) for name, _ in stage_specs]
+    check_order(classes)
+    return [cls(options) for cls, (_, options) in zip(classes, stage_specs)]
 
 
 def default_stage_specs(pipeline: str):
@@ -66,11 +72,13 @@ def run(cloud: Cloud, stages, *, ctx: StageContext | None = None, truth: np.ndar
         return _run(cloud, stages, ctx, truth, default_class, progress, target_class)
     result = _run(cloud.subset(order), stages, ctx, None if truth is None else np.asarray(truth)[order],
                   default_class, progress, target_class)
+    def back(ordered):
+        out = np.empty_like(ordered)
+        out[order] = ordered
+        return out
     for name in ("classification", "decided_by", "segment_id", "processed"):
-        ordered = getattr(result, name)
-        back = np.empty_like(ordered)
-        back[order] = ordered
-        setattr(result, name, back)
+        setattr(result, name, back(getattr(result, name)))
+    result.extra_dims = {name: back(values) for name, values in result.extra_dims.items()}
     return result
 
 
@@ -86,6 +94,7 @@ def _run(cloud, stages, ctx, truth, default_class, progress, target_class) -> Pi
     segment_id = np.full(n, -1, np.int32)
     processed = np.ones(n, bool)
     working = np.arange(n, dtype=np.int64)
+    extra_dims = {}
     rows = []
     t_start = time.perf_counter()
     for number, stage in enumerate(stages, start=1):
@@ -117,6 +126,9 @@ def _run(cloud, stages, ctx, truth, default_class, progress, target_class) -> Pi
                 row["labelled_other"] = int((~working_truth & given).sum())
         for key, values in result.point_data.items():
             ctx.point_data[key] = values
+        for key in getattr(stage, "writes", ()):
+            if key in result.point_data:
+                extra_dims.setdefault(key, np.full(n, np.nan, np.float32))[working] = result.point_data[key]
         if result.keep is not None:
             keep = np.asarray(result.keep, bool)
             removed = working[~keep]
@@ -139,7 +151,7 @@ def _run(cloud, stages, ctx, truth, default_class, progress, target_class) -> Pi
     if not processed.all():
         _transfer_labels(cloud, processed, classification, decided_by, segment_id)
     return PipelineResult(classification, decided_by, segment_id, processed, rows,
-                          time.perf_counter() - t_start, dict(ctx.facts[ESTIMATES]))
+                          time.perf_counter() - t_start, dict(ctx.facts[ESTIMATES]), extra_dims)
 
 
 def _transfer_labels(cloud, processed, classification, decided_by, segment_id):

@@ -16,7 +16,7 @@ DEFAULT_OUT = BENCH_DIR / "out"
 CASES_ENV = "ROADX_BENCH_CASES"              # another folder of cases (tests of the harness)
 # Order of the table and of a run: kernel stages in pipeline order, then the pipelines.
 STAGES = ("voxel_hash", "knn", "uniform_downsample", "voxel_downsample", "sor", "normals", "ransac",
-          "grid_min", "csf", "label_propagation", "road_pipeline", "roof_pipeline")
+          "grid_min", "csf", "height_above_ground", "label_propagation", "road_pipeline", "roof_pipeline")
 FULL_SIZES = (1_000_000, 4_000_000, 16_000_000)
 QUICK_SIZES = (50_000, 200_000)
 

@@ -20,6 +20,7 @@ REGISTRY = {
     "roof_seeds": "roadx_ti.stages.seeds:RoofSeeds",
     "roof_growing": "roadx_ti.stages.roof_growing:RoofGrowing",
     "roof_filter": "roadx_ti.stages.roof_filter:RoofFilter",
+    "height_above_ground": "roadx_ti.stages.height:HeightAboveGround",
 }
 
 

@@ -1,4 +1,15 @@
-"""What a stage is: declared options (defaults, units, validation) and a run over a Cloud.
+"""What a stage is: everything about it in one class.
+
+A Stage subclass declares:
+- ``name`` and ``Options`` (defaults, units, validation; built once, by config validation);
+- ``reach(options, estimates)``: how far (m) its decision about a point depends on other points,
+  for the tile buffers of tiled runs (every stage declares one: the base class raises);
+- ``requires`` / ``provides``: the per-point data (``ctx.point_data`` / ``StageResult.point_data``
+  keys, and GROUND_SURFACE) it reads from earlier stages and hands on; ``check_order`` checks them
+  when the pipeline is built, before any input is read;
+- ``writes``: the per-point data of its own that the output carries as extra dimensions;
+- a ground stage provides GROUND_SURFACE: ``export_ground`` puts its surface in ctx.facts, and the
+  DTM export (output.dtm) and later stages (height_above_ground) read it from there.
 
 A stage gets the current working cloud (the points every earlier stage kept) and a context, and
 returns a StageResult: a keep-mask that narrows the working set, labels for the working points,
@@ -56,6 +67,42 @@ def estimate(ctx: "StageContext", key: str, default=None):
     return default if value is None else value
 # ctx.facts key: number of points of the whole survey a cloud was cut from (tiled runs)
 SURVEY_POINTS = "survey_points"
+# ctx.facts key (and a name in requires / provides): the GroundSurface of the last ground stage
+GROUND_SURFACE = "ground_surface"
+
+# m: the least tile buffer, and the reach a stage declares when its decisions are point-local
+# (even those need their neighbours: kNN statistics, a downsampling stride)
+MIN_BUFFER = 5.0
+
+
+class StageOrderError(ValueError):
+    """A pipeline whose stages need data no earlier stage provides; the message is one line."""
+
+
+@dataclass
+class GroundSurface:
+    """A ground stage's surface: grids with ``cloth_z`` (rows, cols) heights in the cloud's local
+    z, ``x0`` / ``y0`` (local x, y of cell (0, 0)), ``resolution`` and ``height_above(xyz)``
+    (kernels.cloth.ClothResult), one per part of the cloud; ``largest`` is the DTM's."""
+    largest: Any
+    origin: np.ndarray
+    parts: list = field(default_factory=list)   # every part's grid (largest included)
+
+    def height_above(self, xyz: np.ndarray) -> np.ndarray:
+        """float32 (n,): z minus the surface under each point (local coordinates of the cloud the
+        surface was made on); a point under no part's grid (an isolated point, which no cloth lies
+        under) gets NaN, not the grid's border height."""
+        out = np.full(len(xyz), np.nan, np.float32)
+        left = np.ones(len(xyz), bool)
+        for grid in self.parts or [self.largest]:
+            rows, cols = grid.cloth_z.shape
+            x = (xyz[:, 0] - grid.x0) / grid.resolution
+            y = (xyz[:, 1] - grid.y0) / grid.resolution
+            under = left & (x >= 0) & (x <= cols - 1) & (y >= 0) & (y <= rows - 1)
+            if under.any():
+                out[under] = grid.height_above(xyz[under])
+                left &= ~under
+        return out
 
 
 @dataclass
@@ -71,9 +118,26 @@ class StageContext:
 
 
 class Stage:
-    """Subclass with ``name``, ``Options`` and ``run``."""
+    """Subclass with ``name``, ``Options``, ``reach``, ``run`` and, where it applies, ``requires``,
+    ``provides`` and ``writes`` (see the module's docstring; the README's CONTRIBUTING recipe)."""
     name: ClassVar[str] = ""
     Options: ClassVar[type[StageOptions]] = StageOptions
+    # point_data keys (or GROUND_SURFACE) that an earlier stage must provide
+    requires: ClassVar[tuple[str, ...]] = ()
+    # point_data keys (or GROUND_SURFACE) that every result of this stage carries
+    provides: ClassVar[tuple[str, ...]] = ()
+    # point_data keys of this stage's result written to the output as extra dimensions (untiled
+    # runs; float32, NaN for a point the stage did not see)
+    writes: ClassVar[tuple[str, ...]] = ()
+
+    @classmethod
+    def reach(cls, options: StageOptions, estimates: dict | None = None) -> float:
+        """How far (m) this stage's decision about a point depends on other points, from its
+        options and, for 'auto' options, the survey-wide estimates (None: not measured yet,
+        the documented fallback holds). The tile buffer is the largest over the stages, at least
+        MIN_BUFFER. Every stage declares its own: a stage without one is a mistake, not 5 m."""
+        raise NotImplementedError(f"stage {cls.name!r} declares no reach (Stage.reach): how far its "
+                                  "decision about a point depends on other points, in m")
 
     def __init__(self, options: StageOptions | dict | None = None):
         if options is None:
@@ -84,3 +148,31 @@ class Stage:
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:  # pragma: no cover
         raise NotImplementedError
+
+    @staticmethod
+    def export_ground(ctx: StageContext, surface: GroundSurface) -> None:
+        """A ground stage's surface, for the DTM export and later stages (GROUND_SURFACE)."""
+        ctx.facts[GROUND_SURFACE] = surface
+
+
+def check_order(stage_classes) -> None:
+    """Raise StageOrderError (one line) when a stage requires data no earlier stage provides."""
+    have: set[str] = set()
+    for number, cls in enumerate(stage_classes):
+        missing = [key for key in cls.requires if key not in have]
+        if missing:
+            raise StageOrderError(f"stages[{number}] {cls.name} needs {', '.join(map(repr, missing))} from an "
+                                  f"earlier stage ({_makers(missing)}); put it after that stage")
+        have.update(cls.provides)
+
+
+def _makers(keys) -> str:
+    """'KEY from STAGE or STAGE; ...' over the registered stages (the error path only)."""
+    from roadx_ti.stages import REGISTRY, stage_class
+
+    makers = {key: [name for name in REGISTRY if key in stage_class(name).provides] for key in keys}
+    groups: dict[tuple, list] = {}
+    for key, names in makers.items():
+        groups.setdefault(tuple(names), []).append(repr(key))
+    return "; ".join(f"{', '.join(group)} from {' or '.join(names) if names else 'no stage'}"
+                     for names, group in groups.items())

@@ -13,6 +13,7 @@ run with one line naming its extent and cloth_resolution.
 """
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,26 +23,36 @@ from roadx_ti import isolation, memory
 from roadx_ti.cloud import Cloud
 from roadx_ti.errors import DataError
 from roadx_ti.kernels.cloth import LATTICE_PERIOD, ClothResult, LatticeTooLarge, csf
-from roadx_ti.stages.base import CLASS_GROUND, SURVEY_Z_MIN, Stage, StageContext, StageOptions, StageResult
+from roadx_ti.stages.base import (CLASS_GROUND, GROUND_SURFACE, SURVEY_Z_MIN, GroundSurface, Stage, StageContext,
+                                  StageOptions, StageResult)
 
 # In a tile, the cloth starts above the survey's lowest point (as the whole run's does), but never
 # more than this far below the tile's own lowest point: an archive's lowest point says nothing about
 # a mountain tile, and a longer fall costs iterations.
 MAX_START_DROP = 100.0   # m
 BYTES_PER_PARTICLE = 64  # the simulation's per-particle arrays (kernels/cloth.py csf), with slope smoothing
+# m: least reach of a cloth (half the widest building it hangs over): a building cut by a tile
+# window's edge loses the terrain around it that holds the cloth up
+CLOTH_SPAN = 30.0
+CLOTH_STIFFNESS_PARTICLES = 15   # the cloth's stiffness carries its shape this many particles
+
+
+# the `cloth-simulation-filter` package's defaults, defined once: the kernel's signature
+_CSF = {name: p.default for name, p in inspect.signature(csf).parameters.items()}
 
 
 class ClothOptions(StageOptions):
-    cloth_resolution: float = Field(0.5, gt=0, description="C_r: particle spacing of the cloth (m)")
-    rigidness: int = Field(3, ge=1, le=3, description="cloth stiffness, 1 (steep terrain) .. "
-                           "3 (flat, urban) (constraint passes as in the CSF package)")
-    time_step: float = Field(0.65, gt=0, description="simulation time step (dimensionless, "
-                             "the package's default 0.65)")
-    iterations: int = Field(500, ge=1, description="C_n: maximum simulation iterations (count)")
-    class_threshold: float = Field(0.5, gt=0, description="C_t: a point within this distance of "
-                                   "the cloth is ground (m)")
-    slope_smooth: bool = Field(False, description="the package's bSloopSmooth post-processing of "
-                               "steep slopes")
+    cloth_resolution: float = Field(_CSF["cloth_resolution"], gt=0, description="C_r: particle spacing "
+                                    "of the cloth (m)")
+    rigidness: int = Field(_CSF["rigidness"], ge=1, le=3, description="cloth stiffness, 1 (steep "
+                           "terrain) .. 3 (flat, urban) (constraint passes as in the CSF package)")
+    time_step: float = Field(_CSF["time_step"], gt=0, description="simulation time step (dimensionless, "
+                             "the package's default)")
+    iterations: int = Field(_CSF["iterations"], ge=1, description="C_n: maximum simulation iterations (count)")
+    class_threshold: float = Field(_CSF["class_threshold"], gt=0, description="C_t: a point within this "
+                                   "distance of the cloth is ground (m)")
+    slope_smooth: bool = Field(_CSF["slope_smooth"], description="the package's bSloopSmooth "
+                               "post-processing of steep slopes")
 
 
     align_to_world: bool = Field(True, description="lay the particles and the simulation's bands on "
@@ -134,13 +145,21 @@ def _run_cloth(options: ClothOptions, cloud: Cloud, ctx: StageContext, stage: st
     return Cloths(ground, largest, results, 0 if isolated is None else int(isolated.sum()))
 
 
-def _keep_for_dtm(result: Cloths, cloud: Cloud, ctx: StageContext) -> None:
-    """The largest part's cloth, for a DTM export (output.dtm); a raster over all parts would be
-    sized by their extent."""
+def _export_ground(result: Cloths, cloud: Cloud, ctx: StageContext) -> None:
+    """The cloths as the ground surface (GROUND_SURFACE): the DTM export (output.dtm) writes the
+    largest part's (a raster over all parts would be sized by their extent)."""
     if result.largest is not None:
-        ctx.facts["cloth"] = (result.largest, cloud.origin)
-        if len(result.parts) > 1:
-            ctx.facts["cloth_parts"] = len(result.parts)
+        Stage.export_ground(ctx, GroundSurface(result.largest, cloud.origin, [r for _, r in result.parts]))
+
+
+class _ClothStage(Stage):
+    provides = (GROUND_SURFACE,)
+
+    @classmethod
+    def reach(cls, options, estimates=None) -> float:
+        """The larger of CLOTH_SPAN and CLOTH_STIFFNESS_PARTICLES x cloth_resolution: the buffer
+        covers buildings up to 2 x CLOTH_SPAN across."""
+        return max(CLOTH_SPAN, CLOTH_STIFFNESS_PARTICLES * float(options.cloth_resolution))
 
 
 def _info(result: Cloths) -> dict:
@@ -154,7 +173,7 @@ def _info(result: Cloths) -> dict:
     return info
 
 
-class ClothSmooth(Stage):
+class ClothSmooth(_ClothStage):
     """R5: keep the points within class_threshold of the cloth (the road surface candidates)."""
     name = "cloth_smooth"
     Options = ClothSmoothOptions
@@ -163,20 +182,21 @@ class ClothSmooth(Stage):
         if cloud.n == 0:
             return StageResult()
         result = _run_cloth(self.options, cloud, ctx, self.name)
-        _keep_for_dtm(result, cloud, ctx)
+        _export_ground(result, cloud, ctx)
         return StageResult(keep=result.ground, info=_info(result))
 
 
-class ClothGround(Stage):
+class ClothGround(_ClothStage):
     """P1: ground leaves the working set as class 2; the rest keeps its height above the cloth."""
     name = "cloth_ground"
     Options = ClothOptions
+    provides = (GROUND_SURFACE, "height_above_ground")
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         if cloud.n == 0:
             return StageResult()
         result = _run_cloth(self.options, cloud, ctx, self.name)
-        _keep_for_dtm(result, cloud, ctx)
+        _export_ground(result, cloud, ctx)
         keep = ~result.ground
         # aligned with the working points; the pipeline narrows it to the kept ones
         height = result.height_above(cloud.xyz)

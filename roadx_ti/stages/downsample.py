@@ -17,7 +17,7 @@ from pydantic import Field, model_validator
 
 from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
-from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult, estimate
+from roadx_ti.stages.base import MIN_BUFFER, Stage, StageContext, StageOptions, StageResult, estimate
 
 
 class UniformOptions(StageOptions):
@@ -46,6 +46,10 @@ class UniformOptions(StageOptions):
 class UniformDownsample(Stage):
     name = "uniform_downsample"
     Options = UniformOptions
+
+    @classmethod
+    def reach(cls, options, estimates=None) -> float:
+        return MIN_BUFFER     # point-local: a stride or a hash per point (the 'hashed' pattern is tile-free)
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         from roadx_ti.kernels.downsample import hashed_sample, nested_sample, uniform_sample
@@ -106,6 +110,10 @@ class VoxelOptions(StageOptions):
 class VoxelDownsample(Stage):
     name = "voxel_downsample"
     Options = VoxelOptions
+
+    @classmethod
+    def reach(cls, options, estimates=None) -> float:
+        return MIN_BUFFER     # one voxel's points decide its representative (voxels are small)
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         from roadx_ti.kernels.grid import voxel_downsample

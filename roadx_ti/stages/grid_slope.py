@@ -30,6 +30,11 @@ class GridSlopeOptions(StageOptions):
 class GridSlope(Stage):
     name = "grid_slope"
     Options = GridSlopeOptions
+    provides = ("height_above_cell_min",)
+
+    @classmethod
+    def reach(cls, options, estimates=None) -> float:
+        return 4.0 * float(options.step)     # the cell's lowest point, cells a few steps around
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         if cloud.n == 0:

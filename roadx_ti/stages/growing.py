@@ -104,6 +104,10 @@ class ColorGrowing(Stage):
     name = "color_growing"
     Options = GrowingOptions
 
+    @classmethod
+    def reach(cls, options, estimates=None) -> float:
+        return 20.0 * float(options.max_edge_distance)   # regions grow and merge over many graph edges
+
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         from roadx_ti.kernels import labels as lab
         from roadx_ti.kernels.neighbors import knn

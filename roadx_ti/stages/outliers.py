@@ -7,6 +7,7 @@ otherwise inflate for the whole cloud (a cloud without them is filtered exactly 
 """
 from __future__ import annotations
 
+import inspect
 from typing import Literal
 
 import numpy as np
@@ -14,16 +15,24 @@ from pydantic import Field
 
 from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
-from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
+from roadx_ti.kernels.neighbors import MAX_K
+from roadx_ti.kernels.outliers import CONVENTIONS, MODES, sor_keep
+from roadx_ti.stages.base import MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
+
+
+_KERNEL = inspect.signature(sor_keep).parameters
 
 
 class SorOptions(StageOptions):
-    k: int = Field(20, ge=1, le=512, description="neighbours per point (paper k = 500)")
+    k: int = Field(20, ge=1, le=MAX_K, description="neighbours per point (paper k = 500; at most the "
+                   "kNN kernel's MAX_K)")
     std_ratio: float = Field(1.0, gt=0, description="std multiplier (paper std = 1)")
-    mode: Literal["two_sided", "upper"] = Field(
-        "upper", description="two_sided: keep mu - s*sigma < d < mu + s*sigma (paper); "
+    mode: Literal[MODES] = Field(  # type: ignore[valid-type]
+        _KERNEL["mode"].default, description="two_sided: keep mu - s*sigma < d < mu + s*sigma (paper); "
         "upper: keep d < mu + s*sigma (PCL/Open3D)")
-    convention: Literal["paper", "open3d"] = Field(
+    # The kernel's own default is 'open3d' (a point-for-point Open3D drop-in for embedding, see
+    # kernels/outliers.py); the pipeline stage follows the paper (METHODS.md R2).
+    convention: Literal[CONVENTIONS] = Field(  # type: ignore[valid-type]
         "paper", description="paper: k neighbours excluding p, population sigma; open3d: p counts "
         "as one of the k, sample sigma, and d = 0 is dropped (point-for-point Open3D)")
 
@@ -32,9 +41,11 @@ class StatisticalOutlierRemoval(Stage):
     name = "sor"
     Options = SorOptions
 
-    def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
-        from roadx_ti.kernels.outliers import sor_keep
+    @classmethod
+    def reach(cls, options, estimates=None) -> float:
+        return MIN_BUFFER     # a point's k nearest neighbours (mu and sigma are per cloud, not spatial)
 
+    def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         o = self.options
         k = min(o.k, cloud.n - 1)
         if k < 1:

@@ -12,12 +12,14 @@ The ground reference under a point is the lowest point of the 3 x 3 coarse grid 
 """
 from __future__ import annotations
 
+import inspect
 import math
 
 import numpy as np
 from pydantic import Field
 
 from roadx_ti.cloud import Cloud
+from roadx_ti.kernels.ransac import fit_plane
 from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
 
 
@@ -25,7 +27,7 @@ class RansacOptions(StageOptions):
     distance_threshold: float = Field(0.1, gt=0, description="R_t: inlier distance to the plane (m); the "
                                       "paper's '10' has no unit and cannot be metres")
     min_inliers: int = Field(100, ge=3, description="R_n: a plane needs more than this many points")
-    hypotheses: int = Field(1000, ge=1, description="R_m: plane hypotheses tried per plane search")
+    hypotheses: int = Field(inspect.signature(fit_plane).parameters["hypotheses"].default, ge=1, description="R_m: plane hypotheses tried per plane search")
     max_planes: int = Field(50, ge=1, description="at most this many planes are extracted")
     max_tilt_deg: float = Field(45.0, gt=0, lt=90, description="a plane whose normal tilts more than this "
                                 "from vertical is Z class (walls) and removed (degrees)")
@@ -82,9 +84,11 @@ class RansacPlanes(Stage):
     name = "ransac_planes"
     Options = RansacOptions
 
-    def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
-        from roadx_ti.kernels.ransac import fit_plane
+    @classmethod
+    def reach(cls, options, estimates=None) -> float:
+        return float(options.ground_cell)    # the ground reference: 3 x 3 cells around a point's cell
 
+    def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         o = self.options
         xyz = cloud.xyz
         height_above_ground = _height_above_local_minimum(xyz, o.ground_cell, ctx)

@@ -26,18 +26,19 @@ from pydantic import Field
 from scipy.special import ndtr
 
 from roadx_ti.cloud import Cloud
+from roadx_ti.kernels.regions import MAX_ROW
 from roadx_ti.road_graph import Weights, label_road
-from roadx_ti.stages.base import CLASS_OTHER, CLASS_ROAD, Stage, StageContext, StageOptions, StageResult
+from roadx_ti.stages.base import CLASS_OTHER, CLASS_ROAD, MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
 
 # robust sigma from a median absolute value (Gaussian): 1.4826 * MAD
 MAD_TO_SIGMA = 1.4826
 
 
 class RoadRegionsOptions(StageOptions):
-    k: int = Field(12, ge=4, le=32, description="neighbours per point of the filters (median colour, "
-                   "edge-preserving heights)")
-    graph_k: int | None = Field(None, ge=3, le=32, description="the nearest this many of them are the "
-                                "region graph's edges (None: all k)")
+    k: int = Field(12, ge=4, le=MAX_ROW - 1, description="neighbours per point of the filters (median "
+                   "colour, edge-preserving heights; at most the region kernels' row: a point and 32)")
+    graph_k: int | None = Field(None, ge=3, le=MAX_ROW - 1, description="the nearest this many of them are "
+                                "the region graph's edges (None: all k)")
     edge_factor: float = Field(2.0, gt=0, description="longest graph edge, as a multiple of the median "
                                "distance to the k-th neighbour (the measured point spacing)")
     slope_cell: float = Field(2.5, gt=0, description="cell edge of the coarse planes whose slope is "
@@ -109,6 +110,13 @@ def plan_density(xy: np.ndarray, cell: float = 0.5) -> float:
 class RoadRegions(Stage):
     name = "road_regions"
     Options = RoadRegionsOptions
+
+    @classmethod
+    def reach(cls, options, estimates=None) -> float:
+        # MIN_BUFFER, as before stages declared their reach (it had no entry in the tiling's table).
+        # Not its true reach: the road selection is a minimum cut over the whole region graph, so no
+        # finite buffer makes tiled labels equal the whole run's; kept so that tile plans do not change.
+        return MIN_BUFFER
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         from roadx_ti.kernels import regions

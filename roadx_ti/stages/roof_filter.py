@@ -47,6 +47,8 @@ the kept segments, -1 elsewhere.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pydantic import Field
 
@@ -221,6 +223,15 @@ def roof_plane_noise(xyz, knn, segment, normal, curvature, planar_max: float, mi
 class RoofFilter(Stage):
     name = "roof_filter"
     Options = RoofFilterOptions
+    # and 'height_above_ground' (cloth_ground) when there: without it the height test is skipped
+    requires = ("roof_segment",)
+
+    @classmethod
+    def reach(cls, options, estimates=None) -> float:
+        """2 x sqrt(min_roof_area): a roof must be whole to be measured (min_roof_area 0, the area
+        test off, counts as the default area)."""
+        area = options.min_roof_area or RoofFilterOptions.model_fields["min_roof_area"].default
+        return 2.0 * math.sqrt(area)
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         from roadx_ti.kernels.labels import relabel_compact

@@ -33,7 +33,7 @@ from pydantic import Field
 from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.vegetation import DEFAULT_COM_THRESHOLD
-from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
+from roadx_ti.stages.base import MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
 
 
 class RoofGrowingOptions(StageOptions):
@@ -68,6 +68,15 @@ class RoofGrowingOptions(StageOptions):
 class RoofGrowing(Stage):
     name = "roof_growing"
     Options = RoofGrowingOptions
+    requires = ("normal", "curvature", "roof_seed")
+    # and 'vegetation' when its colour rule or the returns rule ran
+    provides = ("roof_segment",)
+
+    @classmethod
+    def reach(cls, options, estimates=None) -> float:
+        # MIN_BUFFER, as before stages declared their reach: a segment grows across a whole roof, but
+        # roof_filter's reach (whole roofs) already covers that in the roof pipeline
+        return MIN_BUFFER
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         from roadx_ti.kernels.labels import relabel_compact

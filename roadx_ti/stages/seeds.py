@@ -96,6 +96,20 @@ def _spacing_of(xyz) -> float:
 class RoofSeeds(Stage):
     name = "roof_seeds"
     Options = RoofSeedsOptions
+    # and 'neighbour_distance' when it has 4 points or more; ctx.facts['knn'] for roof_growing
+    provides = ("roof_seed", "normal", "curvature")
+
+    @classmethod
+    def reach(cls, options, estimates=None) -> float:
+        """4 x r_max. 'auto': r_max from the estimates' spacing when given (the tile plan is made
+        before they are measured), else, like null, the option's default."""
+        r_max = options.r_max
+        if r_max == "auto" and estimates:
+            spacing = estimates.get("pulse_spacing_m") or estimates.get("point_spacing_m")
+            r_max = auto_r_max(float(spacing), options.k, options.r_max_radii) if spacing else None
+        if not isinstance(r_max, (int, float)) or not r_max:
+            r_max = RoofSeedsOptions.model_fields["r_max"].default
+        return 4.0 * float(r_max)
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         o = self.options

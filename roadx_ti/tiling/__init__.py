@@ -1,7 +1,7 @@
 """Scale-out: multi-file catalogs, a fixed grid of core tiles with buffers, executors (in-process or
 dask.distributed) and the merge back into one output.
 
-The parts: ``catalogs`` (the input files), ``reach`` (the default buffer), ``plan`` (the core grid and
+The parts: ``catalogs`` (the input files), ``reach`` (the default buffer, from each Stage.reach), ``plan`` (the core grid and
 its tiles), ``tile`` (one tile on a worker), ``executors`` (in-process, Dask) with ``cluster`` (the
 Dask session and its checks), ``merge`` (segment reconciliation, writing the outputs), ``run``
 (``run_catalog``: the whole run), ``compare`` (tiled against untiled), ``errors``.
@@ -38,13 +38,13 @@ from roadx_ti.tiling.executors import RETRIES, backend_ready, make_jobs, run_in_
 from roadx_ti.tiling.merge import MERGE_CHUNK_POINTS, reconcile_segments, write_outputs
 from roadx_ti.tiling.plan import (MAX_HEADER_CELLS, MAX_LISTED_EDGES, SCAN_CELLS, TARGET_TILE_POINTS, TILE_SIZE_STEP,
                                   CoreGrid, Tile, TilePlan, default_tile_size, plan_tiles, scan_cells, tile_lookup)
-from roadx_ti.tiling.reach import CLOTH_SPAN, MIN_BUFFER, STAGE_REACH_DOC, default_buffer, stage_reach
+from roadx_ti.tiling.reach import CLOTH_SPAN, MIN_BUFFER, default_buffer, stage_reach
 from roadx_ti.tiling.run import MIN_POINTS_PER_TILE, MODES, run_catalog
 from roadx_ti.tiling.tile import MMAP_THRESHOLD, FilePart, TileJob, TileResult, concat_clouds, run_tile
 
 __all__ = ["CLOTH_SPAN", "CONNECT_TIMEOUT", "DISTANCE_BINS", "ENVIRONMENT_PACKAGES", "LAS_SUFFIXES", "MAX_HEADER_CELLS",
            "MAX_LISTED_EDGES", "MERGE_CHUNK_POINTS", "MIN_BUFFER", "MIN_POINTS_PER_TILE", "MMAP_THRESHOLD", "MODES",
-           "RETRIES", "SCAN_CELLS", "STAGE_REACH_DOC", "TARGET_TILE_POINTS", "TILE_SIZE_STEP", "WORKER_TIMEOUT",
+           "RETRIES", "SCAN_CELLS", "TARGET_TILE_POINTS", "TILE_SIZE_STEP", "WORKER_TIMEOUT",
            "CatalogFile", "ClusterError", "CoreGrid", "FilePart", "Tile", "TileError", "TileJob", "TilePlan",
            "TileResult", "backend_ready", "catalog", "compare_outputs", "concat_clouds", "default_buffer",
            "default_tile_size", "environment", "folder_files", "make_jobs", "plan_tiles", "reconcile_segments",

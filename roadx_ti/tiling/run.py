@@ -62,7 +62,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     written to summary_path, default '<output stem>.summary.json' or '<folder>/summary.json')
     holds the plan, per-tile timings and counts. Raises TileError (nothing written) when a tile
     fails after its retries."""
-    from roadx_ti import __version__, io, jsonio, pipelines
+    from roadx_ti import __version__, io, jsonio
     from roadx_ti.config import PIPELINE_TARGET
 
     log = log or log_default
@@ -77,7 +77,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     total_points = sum(f.count for f in files)
     if total_points == 0:
         raise io.InputError(f"the inputs hold no points: {', '.join(f.path for f in files)}")
-    stage_specs = cfg.stage_list() or pipelines.default_stage_specs(cfg.pipeline)
+    stage_specs = cfg.pipeline_stages()
     auto_buffer, reaches = default_buffer(stage_specs)
     buffer = auto_buffer if buffer is None else float(buffer)
     tile_size = default_tile_size(files) if tile_size is None else float(tile_size)
