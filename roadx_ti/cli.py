@@ -13,7 +13,6 @@ import time
 import warnings
 from pathlib import Path
 
-import numpy as np
 
 from roadx_ti import __version__, jsonio
 from roadx_ti.config import parse_point_count
@@ -260,7 +259,7 @@ def cmd_run(args) -> int:
     if cloud.n == 0:
         raise DataError(f"{cloud.source}: the input holds no points")
     if cloud.las is None and out.suffix.lower() in (".las", ".laz"):
-        from roadx_ti.io.las import fits_new_file
+        from roadx_ti.io.las_write import fits_new_file
         if not fits_new_file(cloud.xyz):     # say it now, not after the whole pipeline
             raise DataError(f"{out}: the points of {cloud.source} span more than +-2147 km from their origin, "
                             "which a LAS file at 1 mm scale cannot hold; split the cloud or write .ply/.npz")

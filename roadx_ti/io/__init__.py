@@ -20,6 +20,7 @@ import numpy as np
 
 from ..cloud import Cloud
 from . import las as _las
+from . import las_write as _las_write
 from . import other as _other
 from .atomic import InputError, atomic_output, check_output_path, fail
 
@@ -97,7 +98,7 @@ def write(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=No
     inputs = [cloud.source] if cloud.source and Path(cloud.source).exists() else []
     check_output_path(path, inputs)
     if kind == "las":
-        _las.write_las(path, cloud, classification=classification, extra_dims=extra_dims, subset=subset)
+        _las_write.write_las(path, cloud, classification=classification, extra_dims=extra_dims, subset=subset)
     else:
         _other.WRITERS[kind](path, cloud, classification, extra_dims, subset)
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..cloud import Cloud, detect_color_depth
 from .atomic import InputError, atomic_output, fail
-from .las import per_point, point_index
+from .las_write import per_point, point_index
 
 log = logging.getLogger(__name__)
 

@@ -120,7 +120,7 @@ def _is_las(path) -> bool:
 def _write_las_stream(out: Path, file_ids, merge: _Merge, processed_only: bool) -> int:
     """Stream the files' points (their LAS records, bit-exact but classification and the result
     dimensions) into one LAS/LAZ written atomically; returns the number of points written."""
-    from roadx_ti.io import las as io_las
+    from roadx_ti.io import las_write as io_las
 
     def labels(i, chunk):
         cls, dec, seg, proc = merge.labels(file_ids[i], np.asarray(chunk.x), np.asarray(chunk.y),

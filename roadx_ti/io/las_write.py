@@ -1,0 +1,275 @@
+"""Writing LAS/LAZ (laspy; lazrs encodes LAZ).
+
+A cloud read from LAS is written from its point records: every standard attribute and extra
+dimension is copied byte for byte in the input order, the header (version, point format, scales,
+offsets, VLRs with the CRS) is kept, and only the classification and the named extra dimensions
+change. A cloud from elsewhere becomes LAS 1.4 point format 7 (with colour) or 6, scale 1 mm,
+offset = its origin. Outputs are written atomically (roadx_ti.io.atomic).
+"""
+from __future__ import annotations
+
+import copy
+import logging
+from pathlib import Path
+
+import laspy
+import numpy as np
+
+from ..cloud import Cloud
+from .atomic import InputError, atomic_output, fail
+from .las import CHUNK_POINTS, EXTRA_DIM_TYPES, MAX_POINTS, NEW_FILE_SCALE, WIDE_CLASS_FORMAT, _too_many, is_copc
+
+log = logging.getLogger(__name__)
+
+
+def point_index(subset, n: int):
+    """``subset`` (bool mask or indices) checked against n points; None keeps all."""
+    if subset is None:
+        return None
+    index = np.asarray(subset)
+    if index.dtype == bool:
+        if index.shape != (n,):
+            raise ValueError(f"subset mask has shape {index.shape}, expected ({n},)")
+        return index
+    if index.ndim != 1 or not np.issubdtype(index.dtype, np.integer):
+        raise ValueError("subset must be a boolean mask or an array of point indices")
+    if index.size and (index.min() < -n or index.max() >= n):
+        raise ValueError(f"subset indices out of range for {n} points")
+    return index
+
+
+def per_point(name: str, values, n: int, index) -> np.ndarray:
+    a = np.asarray(values)
+    if a.ndim != 1 or len(a) != n:
+        raise ValueError(f"{name} has shape {a.shape}, expected ({n},)")
+    return a if index is None else a[index]
+
+
+def _classes(path, values: np.ndarray) -> np.ndarray:
+    if values.size and not np.issubdtype(values.dtype, np.integer):
+        raise fail(path, f"classification must be integers 0-255, got {values.dtype}")
+    if values.size and (int(values.min()) < 0 or int(values.max()) > 255):
+        raise fail(path, f"classification values {int(values.min())}..{int(values.max())} "
+                         "are outside the LAS range 0-255")
+    return values.astype(np.uint8)
+
+
+def _extra_dim_values(path, name: str, values: np.ndarray) -> np.ndarray:
+    if values.dtype == bool:
+        values = values.astype(np.uint8)
+    if values.dtype.newbyteorder("=") not in EXTRA_DIM_TYPES:
+        raise fail(path, f"extra dimension {name!r} has type {values.dtype}; LAS extra bytes hold "
+                         "8-64 bit integers and 32/64 bit floats")
+    if not name or len(name.encode()) > 32:
+        raise fail(path, f"extra dimension name {name!r} must be 1-32 bytes long")
+    return values.astype(values.dtype.newbyteorder("="), copy=False)
+
+
+def _set_extra_dims(path, header, array: np.ndarray, extra: dict) -> laspy.ScaleAwarePointRecord:
+    """A record with ``header``'s format plus ``extra`` dims (same-named extra dims replaced in
+    place when the type matches, else re-declared); existing fields are copied as raw bytes."""
+    fmt = header.point_format
+    existing = {d.name: d for d in fmt.extra_dimensions}
+    standard = set(fmt.standard_dimension_names) | {"x", "y", "z"}
+    replace, add = [], []
+    for name, values in extra.items():
+        if name in standard:
+            raise fail(path, f"extra dimension {name!r} clashes with the standard LAS dimension of "
+                             "that name; pass the classification through classification=")
+        old = existing.get(name)
+        if old is not None and (array.dtype[name].base != values.dtype or array.dtype[name].shape
+                                or old.scales is not None or old.offsets is not None):
+            replace.append(name)
+        if old is None or name in replace:
+            add.append(laspy.ExtraBytesParams(name=name, type=values.dtype))
+    if replace:
+        header.remove_extra_dims(replace)
+    if add:
+        header.add_extra_dims(add)
+    record = laspy.ScaleAwarePointRecord.zeros(len(array), header=header)
+    for name in array.dtype.names:
+        if name not in replace:
+            record.array[name] = array[name]
+    for name, values in extra.items():
+        record.array[name] = values
+    return record
+
+
+def _plain_header(header) -> laspy.LasHeader:
+    """A copy of a read header to write with: without a COPC file's octree records (an output is a
+    plain LAS/LAZ in a new point order; laspy does not write COPC)."""
+    header = copy.deepcopy(header)
+    if is_copc(header):
+        header.vlrs = laspy.vlrs.vlrlist.VLRList([v for v in header.vlrs if v.user_id != "copc"])
+        if header.evlrs is not None:
+            header.evlrs = laspy.vlrs.vlrlist.VLRList([v for v in header.evlrs if v.user_id != "copc"])
+    return header
+
+
+def _las_from_record(path, src, n: int, classification, extra_dims, index) -> laspy.LasData:
+    if len(src.points) != n:
+        raise ValueError(f"cloud has {n} points but its LAS record has {len(src.points)}")
+    header = _plain_header(src.header)
+    array = src.points.array if index is None else src.points.array[index]
+    classes = None if classification is None else _classes(path, per_point("classification", classification, n, index))
+    fmt_id = header.point_format.id
+    if classes is not None and fmt_id in WIDE_CLASS_FORMAT and classes.size and int(classes.max()) > 31:
+        wide = WIDE_CLASS_FORMAT[fmt_id]
+        log.warning("%s: class %d does not fit LAS point format %d (classes 0-31); writing LAS 1.4 "
+                    "point format %d instead", path, int(classes.max()), fmt_id, wide)
+        upgraded = laspy.convert(laspy.LasData(header, laspy.ScaleAwarePointRecord(
+            array.copy(), header.point_format, header.scales, header.offsets)),
+            point_format_id=wide, file_version="1.4")
+        header, array = upgraded.header, upgraded.points.array
+    version = f"{header.version.major}.{header.version.minor}"
+    fmt_id = header.point_format.id
+    if fmt_id not in laspy.point.dims.VERSION_TO_POINT_FMT.get(version, ()):
+        # laspy reads LAS 1.0 and odd version / format pairs but writes neither
+        target = laspy.point.dims.preferred_file_version_for_point_format(fmt_id)
+        log.warning("%s: LAS %s with point format %d cannot be written; writing LAS %s (the point records "
+                    "are the same)", path, version, fmt_id, target)
+        upgraded = laspy.convert(laspy.LasData(header, laspy.ScaleAwarePointRecord(
+            array.copy(), header.point_format, header.scales, header.offsets)),
+            point_format_id=fmt_id, file_version=target)
+        header, array = upgraded.header, upgraded.points.array
+    extra = {name: _extra_dim_values(path, name, per_point(name, v, n, index))
+             for name, v in (extra_dims or {}).items()}
+    if extra:
+        record = _set_extra_dims(path, header, array, extra)
+    else:
+        record = laspy.ScaleAwarePointRecord(array.copy(), header.point_format, header.scales, header.offsets)
+    if classes is not None:
+        record["classification"] = classes   # legacy formats: only the 5 class bits change
+    return laspy.LasData(header, record)
+
+
+def fits_new_file(local: np.ndarray) -> bool:
+    """Whether local coordinates (m from the origin) fit a new LAS file's int32 at NEW_FILE_SCALE."""
+    return not local.size or float(np.abs(local).max()) / NEW_FILE_SCALE <= 2**31 - 1.5
+
+
+def _las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> laspy.LasData:
+    n = cloud.n
+    has_rgb = cloud.rgb is not None
+    header = laspy.LasHeader(point_format=7 if has_rgb else 6, version="1.4")
+    header.scales = np.full(3, NEW_FILE_SCALE)
+    header.offsets = cloud.origin.copy()
+    standard = set(header.point_format.standard_dimension_names)
+    columns = dict(cloud.attributes)
+    columns.update(extra_dims or {})
+    standard_cols, extra = {}, {}
+    taken = {"X", "Y", "Z", "x", "y", "z"} | ({"red", "green", "blue"} if has_rgb else set())
+    taken |= {"intensity"} if cloud.intensity is not None else set()
+    taken |= {"classification"} if classification is not None or cloud.classification is not None else set()
+    for name, values in columns.items():
+        a = per_point(name, values, n, index)
+        if name in taken:
+            raise fail(path, f"attribute {name!r} would hide the cloud's own {name}; rename it")
+        if name in standard:
+            standard_cols[name] = a
+        else:
+            extra[name] = _extra_dim_values(path, name, a)
+    local = cloud.xyz.astype(np.float64) if index is None else cloud.xyz[index].astype(np.float64)
+    ints = np.round(local / NEW_FILE_SCALE)
+    if not fits_new_file(local):
+        raise fail(path, "coordinates span more than +-2147 km from the origin at 1 mm scale; "
+                         "split the cloud or move its origin")
+    record = _set_extra_dims(path, header, np.zeros(len(local), dtype=header.point_format.dtype()), extra)
+    record.array["X"], record.array["Y"], record.array["Z"] = (ints[:, k].astype(np.int32) for k in range(3))
+    if has_rgb:
+        rgb = cloud.rgb if index is None else cloud.rgb[index]
+        rgb = rgb.astype(np.uint16) * np.uint16(257) if cloud.color_depth == 8 else rgb.astype(np.uint16)
+        record["red"], record["green"], record["blue"] = rgb[:, 0], rgb[:, 1], rgb[:, 2]
+    if cloud.intensity is not None:
+        record["intensity"] = per_point("intensity", cloud.intensity, n, index).astype(np.uint16)
+    classes = classification if classification is not None else cloud.classification
+    if classes is not None:
+        record["classification"] = _classes(path, per_point("classification", classes, n, index))
+    for name, a in standard_cols.items():
+        target = record[name]
+        cast = a.astype(np.asarray(target).dtype)
+        if not np.array_equal(cast, a):
+            raise fail(path, f"attribute {name!r} does not fit the LAS {name} field ({np.asarray(target).dtype})")
+        record[name] = cast
+    return laspy.LasData(header, record)
+
+
+def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=None) -> None:
+    """Write ``cloud`` to LAS, LAZ when ``path`` ends with .laz, COPC when it ends with
+    .copc.laz (io/copc.py), atomically."""
+    index = point_index(subset, cloud.n)
+    if cloud.las is not None:
+        las = _las_from_record(path, cloud.las, cloud.n, classification, extra_dims, index)
+    else:
+        las = _las_from_arrays(path, cloud, classification, extra_dims, index)
+    if len(las.points) > MAX_POINTS:
+        raise _too_many(path, len(las.points))
+    from . import copc
+    if copc.is_copc_path(path):
+        copc.write(path, las)
+        return
+    compress = str(path).lower().endswith(".laz")
+    with atomic_output(path) as tmp:
+        with open(tmp, "wb") as f:
+            las.write(f, do_compress=compress)
+        check_written(path, tmp, cloud.source)
+
+
+def check_written(path, tmp, source="") -> None:
+    """The written temporary file parses as LAS/LAZ (header, VLRs, point format), or the write
+    fails in one line and the output is not replaced: laspy writes some headers it cannot read
+    back (an undeclared extra-bytes field of more than 3 elements, from an input whose extra-bytes
+    VLR does not describe its records)."""
+    try:
+        with laspy.open(tmp) as reader:
+            reader.header.point_format.dtype()
+    except Exception as exc:
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        raise fail(path, f"the point records{f' of {source}' if source else ''} cannot be written back as a "
+                         f"readable LAS/LAZ file ({text}); check its header (point format, record length, "
+                         "extra-bytes VLR), e.g. with pdal info --metadata") from None
+
+
+# ------------------------------------------------------------------------------- header look-ups
+
+def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_POINTS, on_file=None,
+                     mismatch_hint: str = "") -> int:
+    """Stream the point records of the LAS/LAZ files ``sources`` (in order, ``chunk_points`` at a
+    time) into one LAS/LAZ ``path`` (LAZ when it ends with .laz), written atomically: every record
+    bit for bit as read but its classification and the extra dimensions ``labels`` gives; the
+    header is the first source's with those dimensions. Returns the number of points written.
+
+    ``labels(i, chunk)`` -> (classification, extra_dims, subset) of a chunk (laspy point record) of
+    ``sources[i]``, called in file order; subset None keeps every point of the chunk. ``empty`` is
+    that triple for no points (the dtypes of its arrays shape the header). ``on_file(i, seen)`` is
+    called when ``sources[i]`` has been read, with its number of points. A source whose point format
+    cannot join the first's raises InputError (ending with ``mismatch_hint``)."""
+    written = 0
+    with atomic_output(path) as tmp:
+        writer = None
+        try:
+            for i, source in enumerate(sources):
+                seen = 0
+                with laspy.open(source) as reader:
+                    header = copy.deepcopy(reader.header)
+                    if writer is None:    # the first file's header, with the result dimensions
+                        none = laspy.ScaleAwarePointRecord.zeros(0, header=header)
+                        first = _las_from_record(path, laspy.LasData(header, none), 0, *empty)
+                        writer = laspy.open(tmp, mode="w", header=first.header,
+                                            do_compress=Path(path).suffix.lower() == ".laz")
+                    for chunk in reader.chunk_iterator(chunk_points):
+                        seen += len(chunk)
+                        las = _las_from_record(path, laspy.LasData(header, chunk), len(chunk), *labels(i, chunk))
+                        try:
+                            writer.write_points(las.points)
+                        except laspy.errors.LaspyException as exc:
+                            raise InputError(f"{source}: cannot be merged with {sources[0]} ({exc}: point "
+                                             f"formats differ){mismatch_hint}") from None
+                        written += len(las.points)
+                if on_file is not None:
+                    on_file(i, seen)
+        finally:
+            if writer is not None:
+                writer.close()
+        check_written(path, tmp)
+    return written
