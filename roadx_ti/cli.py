@@ -234,11 +234,11 @@ def cmd_run(args) -> int:
         if not Path(p).exists():
             raise config.ConfigError(f"config error: input.paths = {p!r}: no such file")
     out = Path(cfg.output.path)
+    from roadx_ti import memory
     if cfg.memory_limit:
-        from roadx_ti import memory
         os.environ[memory.LIMIT_VARIABLE] = cfg.memory_limit     # also seen by local Dask workers
     if not cfg.tiled:
-        _check_memory(cfg, _points_before_reading(cfg))
+        memory.check_run(cfg, memory.points_before_reading(cfg))
     if cfg.tiled:
         return _run_tiled(cfg, out, args)
     _prepare_output(out, cfg.input.paths)
@@ -263,8 +263,8 @@ def cmd_run(args) -> int:
         if not fits_new_file(cloud.xyz):     # say it now, not after the whole pipeline
             raise DataError(f"{out}: the points of {cloud.source} span more than +-2147 km from their origin, "
                             "which a LAS file at 1 mm scale cannot hold; split the cloud or write .ply/.npz")
-    if _points_before_reading(cfg) is None:        # formats without a header count: now it is known
-        _check_memory(cfg, cloud.n, cloud)
+    if memory.points_before_reading(cfg) is None:   # formats without a header count: now it is known
+        memory.check_run(cfg, cloud.n, cloud)
         if cfg.tiled:
             del cloud
             return _run_tiled(cfg, out, args)
@@ -356,64 +356,6 @@ def _write_dtm(path: Path, surface, cloud) -> dict:
     return {"path": str(path), "crs": crs.to_string() if crs else None, "cell_size": t["cell_size"],
             "rows": t["rows"], "cols": t["cols"], "x_lower_left": t["x_lower_left"],
             "y_lower_left": t["y_lower_left"], "valid_cells": t["valid_cells"]}
-
-
-def _points_before_reading(cfg):
-    """The run's point count from the LAS header or the synthetic scene's size (None otherwise)."""
-    if cfg.input.synthetic is not None and not cfg.input.paths:
-        return cfg.input.synthetic.points
-    from roadx_ti import io
-
-    path = Path(cfg.input.paths[0])
-    if path.suffix.lower() not in (".las", ".laz") or not path.is_file():
-        return None
-    try:
-        return io.read_headers([path])[0][2]
-    except io.InputError:
-        return None                   # the read will say what is wrong with the file
-
-
-def _check_memory(cfg, points, cloud=None) -> None:
-    """Stop with one line, or switch to tiles (tiling.auto), when the run's memory estimate
-    exceeds what it may use (roadx_ti/memory.py)."""
-    from roadx_ti import memory
-
-    if points is None:
-        return
-    ok, need, budget = memory.fits(cfg.pipeline, points)
-    if ok:
-        return
-    fit = memory.points_that_fit(cfg.pipeline, budget)
-    size = _tile_size_for(cfg, points, max(fit // 2, 1), cloud)
-    said = (f"{points:,} points through the {cfg.pipeline} pipeline need about "
-            f"{memory.format_size(need * memory.SAFETY)}, more than the {memory.format_size(budget)} this run may use")
-    if size is None or not cfg.input.paths or fit < 1000:
-        raise DataError(f"{said}: run on fewer points (e.g. a smaller synthetic scene) or with more memory")
-    if cfg.tiling.auto:
-        log.warning("%s: running in tiles of %g m (tiling.auto)", said, size)
-        cfg.tiling.tile_size = size
-        return
-    raise DataError(f"{said}: run in tiles (--tile-size {size:g}, about {fit // 2:,} points per tile) "
-                    "or set tiling.auto: true (--set tiling.auto=true)")
-
-
-def _tile_size_for(cfg, points, target, cloud=None):
-    """Tile edge (m) of about ``target`` points at the input's mean density (header bounds, or the
-    cloud's bounds once read); None without bounds."""
-    from roadx_ti import io, memory
-
-    if cloud is not None and cloud.n:
-        lo, hi = cloud.xyz[:, :2].min(axis=0), cloud.xyz[:, :2].max(axis=0)
-    elif cfg.input.paths:
-        try:
-            bounds = io.read_headers([cfg.input.paths[0]])[0][1]
-        except io.InputError:
-            return None
-        lo, hi = bounds[:2], bounds[2:]
-    else:
-        return None
-    area = max(float(hi[0] - lo[0]), 1.0) * max(float(hi[1] - lo[1]), 1.0)
-    return memory.tile_size_for(points, area, target)
 
 
 def _prepare_output(out: Path, inputs) -> None:

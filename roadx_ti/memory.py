@@ -18,9 +18,12 @@ laid over (work and memory bounded by the points, not by their extent) and what 
 """
 from __future__ import annotations
 
+import logging
 import math
 import os
 import re
+
+log = logging.getLogger("roadx_ti")
 
 LIMIT_VARIABLE = "ROADX_TI_MEMORY_LIMIT"
 
@@ -133,3 +136,64 @@ def tile_size_for(points: int, area: float, target_points: int) -> float:
     spread over ``area`` m2."""
     density = max(points / max(area, 1.0), 1e-9)
     return 10.0 * math.ceil(math.sqrt(max(target_points, 1) / density) / 10.0)
+
+
+# ---------------------------------------------------------------- a run's memory guard
+def points_before_reading(cfg):
+    """The run's point count from the LAS header or the synthetic scene's size (None otherwise)."""
+    if cfg.input.synthetic is not None and not cfg.input.paths:
+        return cfg.input.synthetic.points
+    from pathlib import Path
+
+    from roadx_ti import io
+
+    path = Path(cfg.input.paths[0])
+    if path.suffix.lower() not in (".las", ".laz") or not path.is_file():
+        return None
+    try:
+        return io.read_headers([path])[0][2]
+    except io.InputError:
+        return None                   # the read will say what is wrong with the file
+
+
+def check_run(cfg, points, cloud=None) -> None:
+    """Stop with one line, or switch to tiles (tiling.auto), when the run's memory estimate
+    exceeds what it may use (``fits``)."""
+    from roadx_ti.errors import DataError
+
+    if points is None:
+        return
+    ok, need, budget = fits(cfg.pipeline, points)
+    if ok:
+        return
+    fit = points_that_fit(cfg.pipeline, budget)
+    size = _tile_size_for(cfg, points, max(fit // 2, 1), cloud)
+    said = (f"{points:,} points through the {cfg.pipeline} pipeline need about "
+            f"{format_size(need * SAFETY)}, more than the {format_size(budget)} this run may use")
+    if size is None or not cfg.input.paths or fit < 1000:
+        raise DataError(f"{said}: run on fewer points (e.g. a smaller synthetic scene) or with more memory")
+    if cfg.tiling.auto:
+        log.warning("%s: running in tiles of %g m (tiling.auto)", said, size)
+        cfg.tiling.tile_size = size
+        return
+    raise DataError(f"{said}: run in tiles (--tile-size {size:g}, about {fit // 2:,} points per tile) "
+                    "or set tiling.auto: true (--set tiling.auto=true)")
+
+
+def _tile_size_for(cfg, points, target, cloud=None):
+    """Tile edge (m) of about ``target`` points at the input's mean density (header bounds, or the
+    cloud's bounds once read); None without bounds."""
+    from roadx_ti import io
+
+    if cloud is not None and cloud.n:
+        lo, hi = cloud.xyz[:, :2].min(axis=0), cloud.xyz[:, :2].max(axis=0)
+    elif cfg.input.paths:
+        try:
+            bounds = io.read_headers([cfg.input.paths[0]])[0][1]
+        except io.InputError:
+            return None
+        lo, hi = bounds[:2], bounds[2:]
+    else:
+        return None
+    area = max(float(hi[0] - lo[0]), 1.0) * max(float(hi[1] - lo[1]), 1.0)
+    return tile_size_for(points, area, target)
