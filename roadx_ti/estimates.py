@@ -128,7 +128,7 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
         rgb_parts.append(None if rgb is None else rgb[pick])
         return_parts.append(None if returns is None else returns[pick])
     for f in files:
-        if f.path.lower().endswith((".las", ".laz")) and not f.path.lower().endswith(".copc.laz"):
+        if f.path.lower().endswith((".las", ".laz")):     # COPC too: its chunks read in file order
             with laspy.open(f.path) as reader:
                 colour = "red" in reader.header.point_format.dimension_names
                 for record in reader.chunk_iterator(chunk_points):
@@ -140,7 +140,7 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
                                                np.asarray(record.number_of_returns)]).astype(np.uint8)
                     take(world, rgb, returns)
             cells[:] = [np.unique(np.concatenate(cells))]   # occupied cells so far, once each
-        else:     # COPC (its chunks are not seekable by point) and the other formats: read whole
+        else:     # the other formats: read whole
             cloud = io.read(f.path, origin=read_origin)
             take(cloud.world_xyz(), cloud.rgb, cloud.returns)
     occupied = np.unique(np.concatenate(cells))

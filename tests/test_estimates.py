@@ -1,6 +1,7 @@
 """Survey-wide estimates (roadx_ti.estimates): a catalog streamed before tiling gives what the
 whole survey in memory gives, whatever the files' point order."""
 import numpy as np
+import pytest
 
 from roadx_ti import io, synthetic
 from roadx_ti.estimates import measure, measure_catalog
@@ -42,3 +43,13 @@ def test_catalog_estimates_equal_the_whole_survey_and_ignore_point_order(tmp_pat
     monkeypatch.setattr(estimates, "measure", partial(estimates.measure, sample_points=10_000))
     small = measure_catalog(files, origin, sample_points=40_000)
     assert measure_catalog(shuffled, origin, sample_points=40_000) == small
+
+
+def test_a_copc_file_streams_like_its_laz(tmp_path):
+    pytest.importorskip("copclib", reason="COPC output needs the copclib extra")
+    scene = synthetic.generate("uav-road", 30_000, seed=6)
+    io.write(tmp_path / "s.laz", scene)
+    io.write(tmp_path / "s.copc.laz", scene)
+    origin = np.floor(scene.world_xyz().min(axis=0))
+    assert measure_catalog(catalog([tmp_path / "s.copc.laz"]), origin) == \
+        measure_catalog(catalog([tmp_path / "s.laz"]), origin)
