@@ -160,16 +160,13 @@ def thin_to_density(cloud, per_m2: float):
     world coordinates in centimetres falls below per_m2 / density, so the kept set does not depend
     on the points' order. The cloud itself when it is not denser than that."""
     from roadx_ti.estimates import occupied_area
+    from roadx_ti.stages.downsample import hash_keys
 
     density = cloud.n / max(occupied_area(cloud.xyz[:, :2]), 1e-9)
     if density <= per_m2:
         return cloud
     q = np.round((cloud.xyz.astype(np.float64) + cloud.origin) * 100).astype(np.int64).astype(np.uint64)
-    h = (q[:, 0] * np.uint64(0x9E3779B97F4A7C15)) ^ (q[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F)) \
-        ^ (q[:, 2] * np.uint64(0x165667B19E3779F9))
-    h ^= h >> np.uint64(29)
-    h *= np.uint64(0xBF58476D1CE4E5B9)
-    h ^= h >> np.uint64(32)
+    h = hash_keys(q)
     keep = (h >> np.uint64(11)).astype(np.float64) / 2.0 ** 53 < per_m2 / density
     return cloud.subset(np.flatnonzero(keep))
 
@@ -317,12 +314,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--backend", default="cpu")
 
 
-def _count(text: str) -> int:
-    t = text.strip().lower()
-    scale = 1_000_000 if t.endswith("m") else 1000 if t.endswith("k") else 1
-    return int(float(t.rstrip("mk")) * scale)
-
-
 def _seeds(text: str):
     if "-" in text:
         a, b = text.split("-")
@@ -332,14 +323,15 @@ def _seeds(text: str):
 
 def main(args) -> int:
     from roadx_ti import backend, jsonio
+    from roadx_ti.config import parse_point_count
     from roadx_ti.io.atomic import atomic_output
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     backend.init(args.backend)
     tasks = ["road", "roof"] if args.task == "all" else [args.task]
-    road_rows = road_datasets(tuple(_count(v) for v in args.road_sizes.split(",") if v.strip()), _seeds(args.road_seeds),
-                              (_count(args.road_large), 0) if args.road_large else None)
+    road_rows = road_datasets(tuple(parse_point_count(v) for v in args.road_sizes.split(",") if v.strip()), _seeds(args.road_seeds),
+                              (parse_point_count(args.road_large), 0) if args.road_large else None)
     results = {task: evaluate(task, out, args.points, road_rows if task == "road" else None) for task in tasks}
     command = (f"python -m roadx_ti accuracy --task {args.task} --points {args.points} --road-sizes {args.road_sizes} "
                f"--road-seeds {args.road_seeds} --road-large '{args.road_large}'")

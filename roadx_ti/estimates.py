@@ -34,10 +34,7 @@ def occupied_area(xy: np.ndarray, cell: float = AREA_CELL) -> float:
     """m2 of the plan cells of edge ``cell`` that hold at least one point."""
     if len(xy) == 0:
         return 0.0
-    key = np.floor(np.asarray(xy, np.float64) / cell).astype(np.int64)
-    key -= key.min(axis=0)
-    width = int(key[:, 1].max()) + 1
-    return float(len(np.unique(key[:, 0] * width + key[:, 1]))) * cell * cell
+    return float(len(np.unique(_cell_keys(xy, cell)))) * cell * cell
 
 
 def uniform_sample(n: int, size: int, seed: int = 0) -> np.ndarray:

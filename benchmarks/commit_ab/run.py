@@ -27,12 +27,6 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[2]
 
 
-def _count(text: str) -> int:
-    t = text.strip().lower()
-    scale = 1_000_000 if t.endswith("m") else 1000 if t.endswith("k") else 1
-    return int(float(t.rstrip("mk")) * scale)
-
-
 def _commit(tree: Path) -> str:
     # --dirty: a tree with uncommitted changes is not the commit it names
     return subprocess.run(["git", "-C", str(tree), "describe", "--always", "--dirty"], capture_output=True,
@@ -63,7 +57,9 @@ def main() -> int:
     p.add_argument("--config", default="configs/road_uav.yaml")
     p.add_argument("--out", type=Path, default=REPO / "benchmarks" / "commit_ab")
     a = p.parse_args()
-    n = _count(a.points)
+    from roadx_ti.config import parse_point_count
+
+    n = parse_point_count(a.points)
     trees = {"base": a.base_tree.resolve(), "new": REPO}
     commits = {k: _commit(t) for k, t in trees.items()}
     rows = {k: [] for k in trees}

@@ -103,6 +103,17 @@ def coordinate_cells(xyz: np.ndarray, origin: np.ndarray, cell: float) -> np.nda
     return (number.astype(np.int64) & 0xFFFFFFFF).astype(np.uint32)
 
 
+def hash_keys(keys: np.ndarray) -> np.ndarray:
+    """uint64 per row of three uint64 keys (a point's integer coordinates or their bits), mixed so
+    that a threshold on it draws a spatially uniform sample that does not depend on point order
+    (the host-side counterpart of the hashed pattern's kernel hash)."""
+    h = keys[:, 0] * np.uint64(0x9E3779B97F4A7C15) ^ keys[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F) \
+        ^ keys[:, 2] * np.uint64(0x165667B19E3779F9)
+    h ^= h >> np.uint64(29)
+    h *= np.uint64(0xBF58476D1CE4E5B9)
+    return h ^ (h >> np.uint64(32))
+
+
 class VoxelOptions(StageOptions):
     voxel_size: float = Field(..., gt=0, description="voxel edge (m)")
 

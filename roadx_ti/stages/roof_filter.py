@@ -187,12 +187,9 @@ NOISE_SAMPLE = 20_000   # planar roof points the roofs' plane noise is measured 
 def coordinate_hash(xyz: np.ndarray) -> np.ndarray:
     """uint64 per point from the bits of its float32 coordinates: a sample drawn by it does not
     depend on the points' order."""
-    bits = np.ascontiguousarray(xyz, np.float32).view(np.uint32).astype(np.uint64)
-    h = bits[:, 0] * np.uint64(0x9E3779B97F4A7C15) ^ bits[:, 1] * np.uint64(0xC2B2AE3D27D4EB4F) \
-        ^ bits[:, 2] * np.uint64(0x165667B19E3779F9)
-    h ^= h >> np.uint64(29)
-    h *= np.uint64(0xBF58476D1CE4E5B9)
-    return h ^ (h >> np.uint64(32))
+    from roadx_ti.stages.downsample import hash_keys
+
+    return hash_keys(np.ascontiguousarray(xyz, np.float32).view(np.uint32).astype(np.uint64))
 
 
 def roof_plane_noise(xyz, knn, segment, normal, curvature, planar_max: float, min_pairs: int = 100,

@@ -463,3 +463,17 @@ class Scene:
         return np.argsort(key)
 
 
+class PhotoScene(Scene):
+    """A photogrammetric street scene (uav-road, uav-road-v1): point heights from the scene's own
+    ``_ground`` surface, and an intensity that carries the colour luminance (x 257), as
+    photogrammetry has no sensor intensity."""
+
+    def _ground_height(self, x, y):
+        scalar = np.ndim(x) == 0
+        z = self._ground(np.atleast_1d(np.asarray(x, dtype=F32)), np.atleast_1d(np.asarray(y, dtype=F32)),
+                         colour=False)
+        return float(z[0]) if scalar else z
+
+    def _final_intensity(self, rgb, inten):
+        rgb = np.rint(rgb)
+        return (F32(0.299) * rgb[:, 0] + F32(0.587) * rgb[:, 1] + F32(0.114) * rgb[:, 2]) * F32(257.0)

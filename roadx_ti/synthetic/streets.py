@@ -33,8 +33,8 @@ from roadx_ti.synthetic.base import (
     CLASS_ROAD,
     F32,
     Boxes,
+    PhotoScene,
     Raster,
-    Scene,
     SmoothNoise,
     integer_counts,
     noisy_colour,
@@ -77,7 +77,7 @@ def street_look(seed: int) -> dict:
     )
 
 
-class StreetScene(Scene):
+class StreetScene(PhotoScene):
     KIND = "uav-road"
     KIND_ID = 3
     ORIGIN = (500000.0, 4500000.0, 0.0)
@@ -329,12 +329,6 @@ class StreetScene(Scene):
         z = z + np.where(lot & ~yard, F32(0.02) * gn + F32(0.012) * rng.standard_normal(n, dtype=F32), F32(0))
         return z, cls, rgb, road
 
-    def _ground_height(self, x, y):
-        scalar = np.ndim(x) == 0
-        z = self._ground(np.atleast_1d(np.asarray(x, dtype=F32)), np.atleast_1d(np.asarray(y, dtype=F32)),
-                         colour=False)
-        return float(z[0]) if scalar else z
-
     # lots and objects --------------------------------------------------------------------
     def _layout_lots(self, r, buildings, trees, hedges, yards, beds):
         """Lots on a 16-30 m grid of the scene: whatever part of a lot is off the streets gets a
@@ -563,6 +557,3 @@ class StreetScene(Scene):
         np.clip(rgb, 0, 255, out=rgb)
         return xyz, rgb, inten, cls
 
-    def _final_intensity(self, rgb, inten):
-        rgb = np.rint(rgb)
-        return (F32(0.299) * rgb[:, 0] + F32(0.587) * rgb[:, 1] + F32(0.114) * rgb[:, 2]) * F32(257.0)

@@ -16,8 +16,8 @@ from roadx_ti.synthetic.base import (
     CLASS_ROAD,
     F32,
     Boxes,
+    PhotoScene,
     Raster,
-    Scene,
     SmoothNoise,
     integer_counts,
     noisy_colour,
@@ -33,7 +33,7 @@ _PITCHED_ROOF_COLOURS = np.array([[150, 70, 50], [125, 82, 62], [72, 74, 80], [1
 _FLAT_ROOF_COLOURS = np.array([[130, 125, 115], [58, 58, 62], [200, 200, 196], [104, 103, 100]], dtype=F32)
 
 
-class UavRoadV1Scene(Scene):
+class UavRoadV1Scene(PhotoScene):
     """Blocks of 70 m: a main road along x (11 m carriageway with parking lanes) at v = 10 m in
     every block row, a branch road along y (8 m) from it to the next row's main road (a T-junction
     at each end), 3 m sidewalks behind 10-15 cm kerbs, and four lots per block: buildings, gardens,
@@ -306,12 +306,6 @@ class UavRoadV1Scene(Scene):
         z = z + np.where(lot, F32(0.02) * gn + F32(0.015) * rng.standard_normal(n, dtype=F32), F32(0))
         return z, cls, rgb, road
 
-    def _ground_height(self, x, y):
-        scalar = np.ndim(x) == 0
-        z = self._ground(np.atleast_1d(np.asarray(x, dtype=F32)), np.atleast_1d(np.asarray(y, dtype=F32)),
-                         colour=False)
-        return float(z[0]) if scalar else z
-
     # ---------------------------------------------------------------- shadows and density
     def _build_shadow_raster(self):
         ras = Raster(self.side, 0.5)
@@ -409,10 +403,4 @@ class UavRoadV1Scene(Scene):
         rgb += (rng.standard_normal(n, dtype=F32) * F32(4.0))[:, None]
         np.clip(rgb, 0, 255, out=rgb)
         return xyz, rgb, inten, cls
-
-    def _final_intensity(self, rgb, inten):
-        # photogrammetry has no sensor intensity: carry the colour luminance (x 257)
-        rgb = np.rint(rgb)
-        return (F32(0.299) * rgb[:, 0] + F32(0.587) * rgb[:, 1] + F32(0.114) * rgb[:, 2]) * F32(257.0)
-
 
