@@ -117,11 +117,10 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
     cells, xyz_parts, rgb_parts, return_parts = [], [], [], []
 
     def take(world, rgb, returns):
-        local = (world - read_origin).astype(np.float32)
         cells.append(np.unique(_cell_keys(world[:, :2], AREA_CELL)))
         # the hash of the exact world coordinates (not float32 local ones: exact at any distance)
         pick = hashed_sample(coordinate_cells(world, np.zeros(3), 0.01), ratio).astype(bool)
-        xyz_parts.append(local[pick])
+        xyz_parts.append((world[pick] - read_origin).astype(np.float32))   # local: only the sample
         rgb_parts.append(None if rgb is None else rgb[pick])
         return_parts.append(None if returns is None else returns[pick])
     for f in files:
