@@ -12,9 +12,10 @@ Per point, on a kNN graph (``knn`` rows, -1 = dropped):
 Every thread reads its own row in slot order and writes only its own output: results are
 bit-identical run to run and across backends with the same float rules.
 
-Host functions (numpy, deterministic): ``graph_edges`` (each undirected kNN edge once),
-``coarse_gradient`` (least-squares planes of coarse cells) and ``merge_regions_by_colour``: region
-merging on the region adjacency graph with a region-level criterion (region mean colours), in
+``graph_edges``: each undirected kNN edge once (kernels: count, scatter, sort per row).
+
+Host functions (numpy, deterministic): ``coarse_gradient`` (least-squares planes of coarse
+cells) and ``merge_regions_by_colour``: region merging on the region adjacency graph with a region-level criterion (region mean colours), in
 rounds of star merges (a region joins its most similar larger neighbour unless another region
 joins it in the same round), over a schedule of colour thresholds, with a veto on pairs whose
 shared boundary shows steps (kerbs): colour gradients cannot chain regions together as a
@@ -199,24 +200,87 @@ def edge_steps(xyz, heights, gradient, ea, eb):
 # ------------------------------------------------------------------------------------------------
 # host: graph, coarse slope, region merging
 
-def graph_edges(indices: np.ndarray, distances: np.ndarray, max_length: float):
-    """Each undirected edge of a kNN table once, as (a, b) int64 with a < b: an entry i -> j
-    no longer than ``max_length``, taken from the row of i when i < j, or from the row of j
-    when j's row does not hold i (a one-way neighbour)."""
-    n, k = indices.shape
-    src = np.repeat(np.arange(n, dtype=np.int64), k)
-    dst = indices.reshape(-1).astype(np.int64)
-    ok = (dst >= 0) & (distances.reshape(-1) <= max_length)
-    src, dst = src[ok], dst[ok]
-    forward = src < dst
-    back = ~forward
-    # i -> j with i > j: kept only when j -> i is not in the table (else it is counted there)
-    mutual = (indices[dst[back]] == src[back, None]).any(axis=1)
-    keep_back = np.flatnonzero(back)[~mutual]
-    a = np.concatenate([src[forward], dst[keep_back]])
-    b = np.concatenate([dst[forward], src[keep_back]])
-    order = np.lexsort((b, a))
-    return a[order], b[order]
+@ti.func
+def _edge_owner(nbr: ti.template(), dist: ti.template(), max_length: ti.f32, i: ti.i32, s: ti.i32) -> ti.i32:
+    """The row that lists undirected edge (i, nbr[i, s]) once: i when i < j, j when i > j and
+    j's row does not hold i (a one-way neighbour), else -1 (dropped, or listed by j)."""
+    j = nbr[i, s]
+    owner = -1
+    if j >= 0 and dist[i, s] <= max_length:
+        if i < j:
+            owner = i
+        elif i > j:
+            owner = j
+            for t in range(nbr.shape[1]):
+                if nbr[j, t] == i:
+                    owner = -1
+    return owner
+
+
+@ti.kernel
+def _edge_counts(nbr: ti.types.ndarray(dtype=ti.i32, ndim=2), dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                 max_length: ti.f32, count: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i, s in ti.ndrange(nbr.shape[0], nbr.shape[1]):
+        owner = _edge_owner(nbr, dist, max_length, i, s)
+        if owner >= 0:
+            ti.atomic_add(count[owner], 1)
+
+
+@ti.kernel
+def _edge_scatter(nbr: ti.types.ndarray(dtype=ti.i32, ndim=2), dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                  max_length: ti.f32, offset: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                  fill: ti.types.ndarray(dtype=ti.i32, ndim=1), eb: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i, s in ti.ndrange(nbr.shape[0], nbr.shape[1]):
+        owner = _edge_owner(nbr, dist, max_length, i, s)
+        if owner >= 0:
+            eb[offset[owner] + ti.atomic_add(fill[owner], 1)] = i + nbr[i, s] - owner
+
+
+@ti.kernel
+def _sort_runs(offset: ti.types.ndarray(dtype=ti.i32, ndim=1), values: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    """Each run values[offset[r]:offset[r + 1]] sorted in place (insertion: runs are short)."""
+    for r in range(offset.shape[0] - 1):
+        lo = offset[r]
+        for a in range(lo + 1, offset[r + 1]):
+            x = values[a]
+            b = a
+            while b > lo:
+                if values[b - 1] > x:
+                    values[b] = values[b - 1]
+                    b -= 1
+                else:
+                    break
+            values[b] = x
+
+
+def graph_edges(indices, distances, max_length: float):
+    """Each undirected edge of a kNN table once, as (a, b) int32 with a < b, sorted by (a, b):
+    an entry i -> j no longer than ``max_length``, taken from the row of i when i < j, or from
+    the row of j when j's row does not hold i (a one-way neighbour). Kernels count each row's
+    edges, scatter them and sort each row's run: the same list whatever the thread order."""
+    nbr = kernel_array(indices, np.int32)
+    n = length(nbr)
+    dist = kernel_array(distances, np.float32)
+    # the largest float32 not above max_length: the float32 test equals the exact one
+    limit = np.float32(min(max_length, np.finfo(np.float32).max))
+    if float(limit) > max_length:
+        limit = np.nextafter(limit, np.float32(-np.inf))
+    limit = float(limit)
+    count = output_array(ti.i32, (n,), indices)
+    if n:
+        _edge_counts(nbr, dist, limit, count)
+    per_row = to_numpy(count)
+    offset = np.zeros(n + 1, np.int64)
+    np.cumsum(per_row, out=offset[1:])
+    if offset[-1] >= np.iinfo(np.int32).max:
+        raise ValueError(f"{offset[-1]} graph edges exceed Taichi's 32-bit indexing; tile the input")
+    offset32 = kernel_array(offset.astype(np.int32), np.int32)
+    eb = output_array(ti.i32, (max(int(offset[-1]), 1),), indices)
+    if n:
+        _edge_scatter(nbr, dist, limit, offset32, output_array(ti.i32, (n,), indices), eb)
+        _sort_runs(offset32, eb)
+    ea = np.repeat(np.arange(n, dtype=np.int32), per_row)
+    return ea, np.asarray(to_numpy(eb))[:len(ea)]
 
 
 def coarse_gradient(xyz: np.ndarray, cell: float) -> np.ndarray:
@@ -280,6 +344,7 @@ def pair_table(ra, rb, edges, up, down, n_regions):
 COLOUR_SCALE = 64          # colour units -> int64 sums
 STEP_SCALE = 4096          # step probabilities -> int64 sums
 _EMPTY = np.iinfo(np.int64).max
+MAX_LOAD = 0.7             # largest share of the pair table's slots in use (linear probing)
 _HASH = -7046029254386353131      # 0x9E3779B97F4A7C15 as a signed 64-bit constant
 
 
@@ -308,13 +373,13 @@ def _clear_table(table: ti.types.ndarray(dtype=ti.i64, ndim=2), size: ti.i32):
 
 @ti.kernel
 def _insert_pairs(ea: ti.types.ndarray(dtype=ti.i32, ndim=1), eb: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                  label: ti.types.ndarray(dtype=ti.i32, ndim=1), table: ti.types.ndarray(dtype=ti.i64, ndim=2),
-                  bits: ti.i32, n: ti.i64):
-    """Every boundary edge's region pair into the open-addressing table: an integer atomic_min
-    claims an empty slot or displaces a larger key, which is carried on (keys in a slot only
-    ever decrease, so the table ends the same whatever the order: each key in one slot)."""
+                  start: ti.i32, items: ti.i32, label: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                  table: ti.types.ndarray(dtype=ti.i64, ndim=2), bits: ti.i32, n: ti.i64):
+    """Items [start, start + items)'s region pairs into the open-addressing table: an integer
+    atomic_min claims an empty slot or displaces a larger key, which is carried on (keys in a
+    slot only ever decrease, so the table ends the same whatever the order: each key in one slot)."""
     mask = (1 << bits) - 1
-    for e in range(ea.shape[0]):
+    for e in range(start, start + items):
         la = label[ea[e]]
         lb = label[eb[e]]
         if la != lb:
@@ -340,18 +405,108 @@ def _find_slot(table: ti.template(), key: ti.i64, bits: ti.i32) -> ti.i32:
 
 @ti.kernel
 def _accumulate_pairs(ea: ti.types.ndarray(dtype=ti.i32, ndim=1), eb: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                      weight: ti.types.ndarray(dtype=ti.i64, ndim=1), steps: ti.types.ndarray(dtype=ti.i64, ndim=1),
-                      label: ti.types.ndarray(dtype=ti.i32, ndim=1), table: ti.types.ndarray(dtype=ti.i64, ndim=2),
-                      bits: ti.i32, n: ti.i64):
+                      weight: ti.types.ndarray(dtype=ti.i32, ndim=1), steps: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                      start: ti.i32, items: ti.i32, label: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                      table: ti.types.ndarray(dtype=ti.i64, ndim=2), bits: ti.i32, n: ti.i64):
     """Items (a, b, edges, steps): graph edges in the first round, then the previous round's
     region pairs (a and b root points, mapped through ``label`` to their regions now)."""
-    for e in range(ea.shape[0]):
+    for e in range(start, start + items):
         la = label[ea[e]]
         lb = label[eb[e]]
         if la != lb:
             slot = _find_slot(table, ti.min(la, lb) * n + ti.max(la, lb), bits)
-            ti.atomic_add(table[slot, 1], weight[e])
+            ti.atomic_add(table[slot, 1], ti.cast(weight[e], ti.i64))
             ti.atomic_add(table[slot, 2], steps[e])
+
+
+@ti.func
+def _retouched(a: ti.i32, b: ti.i32, everything: ti.i32, hook: ti.template(), targeted: ti.template()) -> ti.i32:
+    return everything != 0 or hook[a] >= 0 or hook[b] >= 0 or targeted[a] != 0 or targeted[b] != 0
+
+
+@ti.kernel
+def _carry_counts(ua: ti.types.ndarray(dtype=ti.i32, ndim=1), ub: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                  items: ti.i32, everything: ti.i32, hook: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                  targeted: ti.types.ndarray(dtype=ti.i32, ndim=1), block: ti.i32,
+                  counts: ti.types.ndarray(dtype=ti.i32, ndim=2)):
+    """Per block of items: how many are carried as they are, how many are re-keyed."""
+    for blk in range(counts.shape[0]):
+        kept = 0
+        rekeyed = 0
+        for e in range(blk * block, ti.min(blk * block + block, items)):
+            if _retouched(ua[e], ub[e], everything, hook, targeted):
+                rekeyed += 1
+            else:
+                kept += 1
+        counts[blk, 0] = kept
+        counts[blk, 1] = rekeyed
+
+
+@ti.kernel
+def _carry_pairs(ua: ti.types.ndarray(dtype=ti.i32, ndim=1), ub: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                 uw: ti.types.ndarray(dtype=ti.i32, ndim=1), us: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                 items: ti.i32, everything: ti.i32, hook: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                 targeted: ti.types.ndarray(dtype=ti.i32, ndim=1), block: ti.i32,
+                 offsets: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                 pa: ti.types.ndarray(dtype=ti.i32, ndim=1), pb: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                 pw: ti.types.ndarray(dtype=ti.i32, ndim=1), ps: ti.types.ndarray(dtype=ti.i64, ndim=1)):
+    """The last round's pairs into the next list, in order: a pair neither of whose regions took
+    part in the last round's merges (joined another, or was a target) is still a distinct pair
+    and goes to the front; the others (all with ``everything``) to the back, to be re-keyed
+    through the table (merges may have made several of them one pair). A re-keyed pair keeps a
+    region that took part, so it never equals a carried one. Block offsets from _carry_counts."""
+    for blk in range(offsets.shape[0]):
+        kept = offsets[blk, 0]
+        rekeyed = offsets[blk, 1]
+        for e in range(blk * block, ti.min(blk * block + block, items)):
+            at = 0
+            if _retouched(ua[e], ub[e], everything, hook, targeted):
+                at = rekeyed
+                rekeyed += 1
+            else:
+                at = kept
+                kept += 1
+            pa[at] = ua[e]
+            pb[at] = ub[e]
+            pw[at] = uw[e]
+            ps[at] = us[e]
+
+
+@ti.kernel
+def _table_counts(table: ti.types.ndarray(dtype=ti.i64, ndim=2), size: ti.i32, block: ti.i32,
+                  counts: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for blk in range(counts.shape[0]):
+        used = 0
+        for s in range(blk * block, ti.min(blk * block + block, size)):
+            if table[s, 0] != ti.i64(_EMPTY):
+                used += 1
+        counts[blk] = used
+
+
+@ti.kernel
+def _compact_pairs(table: ti.types.ndarray(dtype=ti.i64, ndim=2), size: ti.i32, block: ti.i32, n: ti.i64,
+                   offsets: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                   pa: ti.types.ndarray(dtype=ti.i32, ndim=1), pb: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                   weight: ti.types.ndarray(dtype=ti.i32, ndim=1), steps: ti.types.ndarray(dtype=ti.i64, ndim=1)):
+    """The table's pairs, in slot order, as a dense list from each block's offset (_table_counts)."""
+    for blk in range(offsets.shape[0]):
+        at = offsets[blk]
+        for s in range(blk * block, ti.min(blk * block + block, size)):
+            key = table[s, 0]
+            if key != ti.i64(_EMPTY):
+                pa[at] = ti.cast(key // n, ti.i32)
+                pb[at] = ti.cast(key % n, ti.i32)
+                weight[at] = ti.cast(table[s, 1], ti.i32)
+                steps[at] = table[s, 2]
+                at += 1
+
+
+def _blocks(items: int):
+    """(block length, number of blocks) of a blocked pass: enough blocks for every thread, each
+    long enough that a thread's serial loop outweighs its launch."""
+    count = max(1, min(16384, -(-items // 256)))
+    block = max(1, -(-items // count))
+    return block, -(-items // block) if items else 1
 
 
 @ti.func
@@ -364,33 +519,32 @@ def _mean_colour(csum: ti.template(), count: ti.template(), r: ti.i32):
 
 
 @ti.kernel
-def _best_neighbours(table: ti.types.ndarray(dtype=ti.i64, ndim=2), count: ti.types.ndarray(dtype=ti.i64, ndim=1),
+def _best_neighbours(pa: ti.types.ndarray(dtype=ti.i32, ndim=1), pb: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                     weight: ti.types.ndarray(dtype=ti.i32, ndim=1), steps: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                     items: ti.i32, count: ti.types.ndarray(dtype=ti.i64, ndim=1),
                      csum: ti.types.ndarray(dtype=ti.i64, ndim=2), best: ti.types.ndarray(dtype=ti.i64, ndim=1),
-                     n: ti.i64, level: ti.f64, size_pass: ti.i32, min_size: ti.i64, max_chroma: ti.f64,
-                     veto: ti.f64, size: ti.i32):
+                     level: ti.f64, size_pass: ti.i32, min_size: ti.i64, max_chroma: ti.f64, veto: ti.f64):
     """Each valid pair offers itself to both of its regions: best[r] = min over (cost bits << 32 |
     other region), an integer minimum (ties to the lower region id). Costs are squared mean
     colour distances in float64 (rounded to float32 for the order key)."""
-    for s in range(size):
-        key = table[s, 0]
-        if key != ti.i64(_EMPTY):
-            a = ti.cast(key // n, ti.i32)
-            b = ti.cast(key % n, ti.i32)
-            d = _mean_colour(csum, count, a) - _mean_colour(csum, count, b)
-            cost2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
-            grey = (d[0] + d[1] + d[2]) / 3.0
-            c0, c1, c2 = d[0] - grey, d[1] - grey, d[2] - grey
-            chroma2 = c0 * c0 + c1 * c1 + c2 * c2
-            ok = ti.cast(table[s, 2], ti.f64) <= veto * STEP_SCALE * ti.cast(table[s, 1], ti.f64) \
-                and chroma2 <= max_chroma * max_chroma
-            if size_pass:
-                ok = ok and (count[a] < min_size or count[b] < min_size)
-            else:
-                ok = ok and cost2 <= level * level
-            if ok:
-                bits = ti.cast(ti.bit_cast(ti.cast(cost2, ti.f32), ti.i32), ti.i64) << 32
-                ti.atomic_min(best[a], bits | ti.cast(b, ti.i64))
-                ti.atomic_min(best[b], bits | ti.cast(a, ti.i64))
+    for e in range(items):
+        a = pa[e]
+        b = pb[e]
+        d = _mean_colour(csum, count, a) - _mean_colour(csum, count, b)
+        cost2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+        grey = (d[0] + d[1] + d[2]) / 3.0
+        c0, c1, c2 = d[0] - grey, d[1] - grey, d[2] - grey
+        chroma2 = c0 * c0 + c1 * c1 + c2 * c2
+        ok = ti.cast(steps[e], ti.f64) <= veto * STEP_SCALE * ti.cast(weight[e], ti.f64) \
+            and chroma2 <= max_chroma * max_chroma
+        if size_pass:
+            ok = ok and (count[a] < min_size or count[b] < min_size)
+        else:
+            ok = ok and cost2 <= level * level
+        if ok:
+            bits = ti.cast(ti.bit_cast(ti.cast(cost2, ti.f32), ti.i32), ti.i64) << 32
+            ti.atomic_min(best[a], bits | ti.cast(b, ti.i64))
+            ti.atomic_min(best[b], bits | ti.cast(a, ti.i64))
 
 
 @ti.kernel
@@ -488,28 +642,62 @@ def _host_round(label, count, csum, ea, eb, weight, step_sum, n, level, size_pas
     return len(me), items
 
 
-def _device_round(state, live, n, bits, level, size_pass, min_size, max_chroma, veto):
-    """The same round with the kernels (64-bit integer atomics): returns the regions joined."""
-    label, count, csum, best, hook, targeted, merged, table = state
-    _clear_table(table, 1 << bits)
-    ua, ub, uu, dd = (kernel_array(v, v.dtype) for v in live)
-    _insert_pairs(ua, ub, label, table, bits, n)
-    _accumulate_pairs(ua, ub, uu, dd, label, table, bits, n)
+def _device_round(state, items, n, level, size_pass, min_size, max_chroma, veto, first):
+    """The same round with the kernels (64-bit integer atomics), on pair lists that stay in the
+    kernels' memory: ``items`` (index of the buffer holding the last round's pairs, their
+    number). Pairs that the last round's merges did not touch are carried over; only the others
+    go through the hash table. ``first``: None in later rounds; in the first, "distinct" when the
+    graph's edges are distinct pairs (used as they are), else "rekey" (all through the table).
+    Returns the regions joined and the round's pairs (the next round's items)."""
+    label, count, csum, best, hook, targeted, merged, table, buffers = state
+    which, m = items
+    ua, ub, uw, us = buffers[which]
+    pa, pb, pw, ps = buffers[1 - which]
+    if first == "distinct":
+        # the graph's edges are the first round's pairs as they are
+        pa, pb, pw, ps = ua, ub, uw, us
+        pairs, which = m, 1 - which
+    else:
+        cap = int(pa.shape[0])
+        block, n_blocks = _blocks(m)
+        counts = output_array(ti.i32, (n_blocks, 2), pa)
+        _carry_counts(ua, ub, m, int(first == "rekey"), hook, targeted, block, counts)
+        c = np.asarray(to_numpy(counts), np.int64)
+        kept, touched = int(c[:, 0].sum()), int(c[:, 1].sum())
+        offsets = np.zeros((n_blocks, 2), np.int64)
+        np.cumsum(c[:-1], axis=0, out=offsets[1:])
+        offsets[:, 1] += cap - touched
+        _carry_pairs(ua, ub, uw, us, m, int(first == "rekey"), hook, targeted, block,
+                     kernel_array(offsets.astype(np.int32), np.int32), pa, pb, pw, ps)
+        pairs = kept
+        if touched:
+            bits = max(4, int(np.ceil(np.log2(touched / MAX_LOAD))))
+            if table[0] is None or int(table[0].shape[0]) < 1 << bits:
+                table[0] = None
+                table[0] = output_array(ti.i64, (1 << bits, 3), table[1])
+            table = table[0]
+            _clear_table(table, 1 << bits)
+            _insert_pairs(pa, pb, cap - touched, touched, label, table, bits, n)
+            _accumulate_pairs(pa, pb, pw, ps, cap - touched, touched, label, table, bits, n)
+            tblock, t_blocks = _blocks(1 << bits)
+            used = output_array(ti.i32, (t_blocks,), pa)
+            _table_counts(table, 1 << bits, tblock, used)
+            u = np.asarray(to_numpy(used), np.int64)
+            starts = np.zeros(t_blocks, np.int64)
+            np.cumsum(u[:-1], out=starts[1:])
+            _compact_pairs(table, 1 << bits, tblock, n, kernel_array((starts + kept).astype(np.int32), np.int32),
+                           pa, pb, pw, ps)
+            pairs = kept + int(u.sum())
     _clear_round(best, targeted)
-    _best_neighbours(table, count, csum, best, n, level, size_pass,
-                     int(min_size), float(max_chroma), float(veto), 1 << bits)
+    _best_neighbours(pa, pb, pw, ps, pairs, count, csum, best, level, size_pass, int(min_size),
+                     float(max_chroma), float(veto))
     _choose_hooks(best, count, label, hook, targeted)
     merged[0] = 0
     _apply_hooks(hook, targeted, count, csum, merged)
     joined = int(merged[0])
-    # the round's region pairs are the next round's items (far fewer than the graph edges)
-    rows = to_numpy(table)[:1 << bits]
-    used = rows[:, 0] != _EMPTY
-    key = rows[used, 0]
-    items = ((key // n).astype(np.int32), (key % n).astype(np.int32), rows[used, 1], rows[used, 2])
     if joined:
         _relabel(label, hook)
-    return joined, items
+    return joined, (1 - which, pairs)
 
 
 def _native_int64_atomics() -> bool:
@@ -540,7 +728,7 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
     a32 = np.ascontiguousarray(ea, np.int32)
     b32 = np.ascontiguousarray(eb, np.int32)
     up_q = np.rint(np.asarray(steps_up, np.float64) * STEP_SCALE).astype(np.int64)
-    down_q = np.rint(np.asarray(steps_down, np.float64) * STEP_SCALE).astype(np.int64)
+    up_q += np.rint(np.asarray(steps_down, np.float64) * STEP_SCALE).astype(np.int64)   # up + down
     host = (not _native_int64_atomics()) if host is None else bool(host)
     if host:
         label = np.arange(n, dtype=np.int64)
@@ -550,26 +738,35 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
         label = output_array(ti.i32, (n,), col)
         count = output_array(ti.i64, (n,), col)
         csum = output_array(ti.i64, (n, 3), col)
-        cap = max(4, int(np.ceil(np.log2(max(2 * len(a32), 16)))))
-        # the pair table: one row (key, edges, steps, pad) per slot, one cache line per probe
+        # graph_edges' edges: a < b, sorted by (a, b), each pair once (then used as they are)
+        da, db = np.diff(a32), np.diff(b32)
+        distinct = bool(np.all(a32 < b32) and np.all((da > 0) | ((da == 0) & (db > 0))))
+        del da, db
+        # two item buffers (a round reads one and writes its pairs into the other), the first
+        # holding the graph edges: (a, b, edges, steps)
+        first = (a32.copy(), b32.copy(), np.ones(len(a32), np.int32), up_q)
+        buffers = (tuple(kernel_array(v, v.dtype) for v in first),
+                   tuple(output_array(t, (max(len(a32), 1),), col) for t in (ti.i32, ti.i32, ti.i32, ti.i64)))
+        del first
+        # the pair table (rows key, edges, steps) is made when a round first re-keys pairs, sized
+        # for that round's, and grown when a later round re-keys more
         state = (label, count, csum) + tuple(output_array(t, (n,), col) for t in (ti.i64, ti.i32, ti.i32)) \
-            + (output_array(ti.i32, (1,), col), output_array(ti.i64, (1 << cap, 4), col))
+            + (output_array(ti.i32, (1,), col), [None, col], buffers)
         if n:
             _reset_regions(count, csum, kernel_array(col, np.float32), label)
-    live = (a32, b32, np.ones(len(a32), np.int64), up_q + down_q)
+    live = (a32, b32, np.ones(len(a32), np.int64), up_q) if host else (0, len(a32))
     schedule = [(float(v), 0) for v in levels] + ([(0.0, 1)] if min_size > 1 else [])
     rounds = 0
     regions_left = n
     for level, size_pass in schedule:
-        while rounds < max_rounds and n and len(live[0]):
+        while rounds < max_rounds and n and (len(live[0]) if host else live[1]):
             rounds += 1
             if host:
                 joined, live = _host_round(label, count, csum, *live, n, level, size_pass, min_size,
                                            float(max_chroma_step), float(step_veto))
             else:
-                bits = max(4, int(np.ceil(np.log2(2 * len(live[0])))))
-                joined, live = _device_round(state, live, n, bits, level, size_pass, min_size, max_chroma_step,
-                                             step_veto)
+                joined, live = _device_round(state, live, n, level, size_pass, min_size, max_chroma_step,
+                                             step_veto, first=("distinct" if distinct else "rekey") if rounds == 1 else None)
             if joined == 0:
                 break
             regions_left -= joined

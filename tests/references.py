@@ -107,3 +107,21 @@ def merge_regions_reference(n, ea, eb, up, down, colour, levels, max_chroma, vet
             if joined < settle * left:
                 break
     return np.array(label)
+
+
+def graph_edges_reference(indices, distances, max_length):
+    """Plain numpy of kernels.regions.graph_edges: entries i -> j no longer than max_length, from
+    i's row when i < j, from j's when j's row does not hold i; (a, b) sorted."""
+    n, k = indices.shape
+    src = np.repeat(np.arange(n, dtype=np.int64), k)
+    dst = indices.reshape(-1).astype(np.int64)
+    ok = (dst >= 0) & (distances.reshape(-1) <= max_length) & (dst != src)
+    src, dst = src[ok], dst[ok]
+    forward = src < dst
+    back = ~forward
+    mutual = (indices[dst[back]] == src[back, None]).any(axis=1)
+    keep_back = np.flatnonzero(back)[~mutual]
+    a = np.concatenate([src[forward], dst[keep_back]])
+    b = np.concatenate([dst[forward], src[keep_back]])
+    order = np.lexsort((b, a))
+    return a[order], b[order]

@@ -7,7 +7,7 @@ import pytest
 
 from roadx_ti.kernels import regions
 from roadx_ti.kernels.neighbors import knn
-from tests.references import merge_regions_reference
+from tests.references import graph_edges_reference, merge_regions_reference
 
 
 def _plane(n=3000, noise=0.01, seed=0, step=0.0):
@@ -53,6 +53,40 @@ def test_graph_edges_hold_each_undirected_edge_once():
     assert len(pairs) == len(a)
     want = {(min(i, j), max(i, j)) for i in range(500) for j in idx[i]}
     assert pairs == want
+
+
+def test_graph_edges_equal_the_numpy_reference(ti_arch):
+    # one-way neighbours, dropped entries, a length cap and a point far from the rest
+    xyz = _plane(2000, seed=4)
+    xyz[7] = (60.0, 60.0, 0.0)
+    idx, dist = knn(xyz, 9)
+    idx[::11, 2] = -1
+    cap = float(np.median(dist[:, -1]))
+    for limit in (cap, np.inf):
+        a, b = regions.graph_edges(idx, dist, limit)
+        want_a, want_b = graph_edges_reference(idx, dist, limit)
+        assert a.dtype == np.int32 and b.dtype == np.int32
+        assert np.array_equal(a, want_a) and np.array_equal(b, want_b)
+    # a float64 limit between two float32 distances: the exact comparison
+    d = np.unique(dist[dist > 0])[100:102].astype(np.float64)
+    limit = float(d[0] + (d[1] - d[0]) / 3)
+    assert np.array_equal(regions.graph_edges(idx, dist, limit)[1], graph_edges_reference(idx, dist, limit)[1])
+
+
+def test_region_merging_is_the_same_whatever_the_edge_order():
+    # graph_edges' sorted distinct list is used as it is in the first round, any other order goes
+    # through the pair table; pairs the merges did not touch are carried between rounds
+    n, a, b, up, down, colour = _merge_case(2, n=3000)
+    args = ((1.5, 3.0, 6.0), 10.0, 0.1, 6)
+    sorted_run = regions.merge_regions_by_colour(n, a, b, up, down, colour, *args)
+    perm = np.random.default_rng(0).permutation(len(a))
+    flipped = perm % 3 == 0                            # some edges (b, a), with their steps swapped
+    ea, eb = np.where(flipped, b[perm], a[perm]), np.where(flipped, a[perm], b[perm])
+    eu, ed = np.where(flipped, down[perm], up[perm]), np.where(flipped, up[perm], down[perm])
+    shuffled = regions.merge_regions_by_colour(n, ea, eb, eu, ed, colour, *args)
+    assert np.array_equal(sorted_run.label, shuffled.label)
+    assert np.array_equal(sorted_run.colour_sum, shuffled.colour_sum)
+    assert sorted_run.n_regions < n / 5
 
 
 def test_coarse_gradient_of_a_plane():

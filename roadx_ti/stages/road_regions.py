@@ -21,6 +21,9 @@ Colour source: RGB (8-bit units), else LiDAR intensity as a grey (scaled to 8-bi
 """
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 from pydantic import Field
 from scipy.special import ndtr
@@ -79,22 +82,35 @@ def colour_channels(cloud: Cloud):
     return "geometry", np.zeros((cloud.n, 3), np.float32)
 
 
-def kerb_evidence(steps, sigma, kerb_min, kerb_max, prior):
+def kerb_evidence(steps, sigma, kerb_min, kerb_max, prior, chunk: int = 1 << 16):
     """Per edge: posterior probabilities that it steps up from a to b, or from b to a, by a
     kerb (height uniform in [kerb_min, kerb_max]) rather than lying on one surface (Gaussian of
-    the measured spread, with a wider tail for outliers)."""
+    the measured spread, with a wider tail for outliers). Elementwise, in chunks that stay in
+    cache, on a thread per core (numpy's ufuncs release the GIL): the same values as one pass."""
     r = np.asarray(steps, np.float64)
     sigma = max(float(sigma), 1e-4)
-    z = r / sigma
-    # Gaussian densities and cdfs as plain ufuncs (scipy.special: no distribution overhead)
-    flat = (0.9 * np.exp(-0.5 * z * z) + 0.1 / 3.0 * np.exp(-0.5 * z * z / 9.0)) / (sigma * np.sqrt(2.0 * np.pi))
     span = kerb_max - kerb_min
     lo, hi = kerb_min / sigma, kerb_max / sigma
-    up = (ndtr(z - lo) - ndtr(z - hi)) / span
-    down = (ndtr(-z - lo) - ndtr(-z - hi)) / span
-    a, b, c = (1.0 - prior) * flat, 0.5 * prior * up, 0.5 * prior * down
-    total = a + b + c + 1e-300
-    return b / total, c / total
+    up, down = np.empty(len(r)), np.empty(len(r))
+
+    def part(start):
+        z = r[start:start + chunk] / sigma
+        # Gaussian densities and cdfs as plain ufuncs (scipy.special: no distribution overhead)
+        flat = (0.9 * np.exp(-0.5 * z * z) + 0.1 / 3.0 * np.exp(-0.5 * z * z / 9.0)) / (sigma * np.sqrt(2.0 * np.pi))
+        a = (1.0 - prior) * flat
+        b = 0.5 * prior * ((ndtr(z - lo) - ndtr(z - hi)) / span)
+        c = 0.5 * prior * ((ndtr(-z - lo) - ndtr(-z - hi)) / span)
+        total = a + b + c + 1e-300
+        up[start:start + chunk] = b / total
+        down[start:start + chunk] = c / total
+    starts = range(0, len(r), chunk)
+    if len(r) > 4 * chunk:
+        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+            list(pool.map(part, starts))
+    else:
+        for start in starts:
+            part(start)
+    return up, down
 
 
 def plan_density(xy: np.ndarray, cell: float = 0.5) -> float:
@@ -136,10 +152,10 @@ class RoadRegions(Stage):
                                      o.edge_factor * spacing)
         neighbours = np.where(distances <= o.edge_factor * spacing, indices, -1).astype(np.int32)
         gradient = regions.coarse_gradient(xyz, o.slope_cell)
-        raw = regions.edge_steps(xyz, xyz[:, 2].copy(), gradient, ea.astype(np.int32), eb.astype(np.int32))
+        raw = regions.edge_steps(xyz, xyz[:, 2].copy(), gradient, ea, eb)
         height_noise = o.height_noise or MAD_TO_SIGMA * float(np.median(np.abs(raw))) / np.sqrt(2.0)
         filtered = regions.mode_heights(xyz, neighbours, gradient, o.filter_width * height_noise)
-        steps = regions.edge_steps(xyz, filtered, gradient, ea.astype(np.int32), eb.astype(np.int32))
+        steps = regions.edge_steps(xyz, filtered, gradient, ea, eb)
         step_sigma = MAD_TO_SIGMA * float(np.median(np.abs(steps)))
         up, down = kerb_evidence(steps, step_sigma, o.kerb_min, o.kerb_max, o.kerb_prior)
         colour_f = regions.neighbourhood_median(colour, neighbours)
