@@ -780,9 +780,9 @@ def _region_graph(label, count, csum, ea, eb, up, down):
     """Compact region ids 0..R-1 in order of each region's first point (so that equal partitions
     get equal ids, whichever point a backend's merges left as the root) and the final pair table."""
     roots, first, compact = np.unique(label, return_index=True, return_inverse=True)
-    rank = np.empty(len(roots), np.int64)
+    rank = np.empty(len(roots), np.int32)          # int32 ids: the per-edge lookups below are large
     order = np.argsort(first, kind="stable")
-    rank[order] = np.arange(len(roots))
+    rank[order] = np.arange(len(roots), dtype=np.int32)
     compact = rank[compact.ravel()]
     roots = roots[order]
     la, lb = compact[ea], compact[eb]

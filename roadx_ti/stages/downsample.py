@@ -16,6 +16,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from roadx_ti import isolation
+from roadx_ti.chunks import over_chunks
 from roadx_ti.cloud import Cloud
 from roadx_ti.stages.base import MIN_BUFFER, Stage, StageContext, StageOptions, StageResult, estimate
 
@@ -98,9 +99,16 @@ def coordinate_cells(xyz: np.ndarray, origin: np.ndarray, cell: float) -> np.nda
     < 0.25 mm within 8 km) stays inside the offset for coordinates delivered on a 1 mm or coarser
     grid; farther from the local origin some points fall on the other side of a cell boundary.
     Exact world coordinates (float64 ``xyz`` with a zero origin) are exact at any distance."""
-    world = np.asarray(xyz, np.float64) + np.asarray(origin, np.float64)
-    number = np.floor(world / cell + (0.5 + HASH_OFFSET / cell))
-    return (number.astype(np.int64) & 0xFFFFFFFF).astype(np.uint32)
+    xyz = np.asarray(xyz)
+    origin = np.asarray(origin, np.float64)
+    out = np.empty(xyz.shape, np.uint32)
+
+    def part(start, stop):
+        world = xyz[start:stop].astype(np.float64) + origin
+        number = np.floor(world / cell + (0.5 + HASH_OFFSET / cell))
+        out[start:stop] = (number.astype(np.int64) & 0xFFFFFFFF).astype(np.uint32)
+    over_chunks(part, len(xyz))
+    return out
 
 
 def hash_keys(keys: np.ndarray) -> np.ndarray:

@@ -21,13 +21,11 @@ Colour source: RGB (8-bit units), else LiDAR intensity as a grey (scaled to 8-bi
 """
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor
-
 import numpy as np
 from pydantic import Field
 from scipy.special import ndtr
 
+from roadx_ti.chunks import over_chunks
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.regions import MAX_ROW
 from roadx_ti.road_graph import Weights, label_road
@@ -82,34 +80,27 @@ def colour_channels(cloud: Cloud):
     return "geometry", np.zeros((cloud.n, 3), np.float32)
 
 
-def kerb_evidence(steps, sigma, kerb_min, kerb_max, prior, chunk: int = 1 << 16):
+def kerb_evidence(steps, sigma, kerb_min, kerb_max, prior):
     """Per edge: posterior probabilities that it steps up from a to b, or from b to a, by a
     kerb (height uniform in [kerb_min, kerb_max]) rather than lying on one surface (Gaussian of
-    the measured spread, with a wider tail for outliers). Elementwise, in chunks that stay in
-    cache, on a thread per core (numpy's ufuncs release the GIL): the same values as one pass."""
+    the measured spread, with a wider tail for outliers). Elementwise, in chunks (roadx_ti.chunks)."""
     r = np.asarray(steps, np.float64)
     sigma = max(float(sigma), 1e-4)
     span = kerb_max - kerb_min
     lo, hi = kerb_min / sigma, kerb_max / sigma
     up, down = np.empty(len(r)), np.empty(len(r))
 
-    def part(start):
-        z = r[start:start + chunk] / sigma
+    def part(start, stop):
+        z = r[start:stop] / sigma
         # Gaussian densities and cdfs as plain ufuncs (scipy.special: no distribution overhead)
         flat = (0.9 * np.exp(-0.5 * z * z) + 0.1 / 3.0 * np.exp(-0.5 * z * z / 9.0)) / (sigma * np.sqrt(2.0 * np.pi))
         a = (1.0 - prior) * flat
         b = 0.5 * prior * ((ndtr(z - lo) - ndtr(z - hi)) / span)
         c = 0.5 * prior * ((ndtr(-z - lo) - ndtr(-z - hi)) / span)
         total = a + b + c + 1e-300
-        up[start:start + chunk] = b / total
-        down[start:start + chunk] = c / total
-    starts = range(0, len(r), chunk)
-    if len(r) > 4 * chunk:
-        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-            list(pool.map(part, starts))
-    else:
-        for start in starts:
-            part(start)
+        up[start:stop] = b / total
+        down[start:stop] = c / total
+    over_chunks(part, len(r))
     return up, down
 
 
