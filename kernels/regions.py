@@ -519,10 +519,21 @@ def _mean_colour(csum: ti.template(), count: ti.template(), r: ti.i32):
 
 
 @ti.kernel
+def _mean_colours(csum: ti.types.ndarray(dtype=ti.i64, ndim=2), count: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                  label: ti.types.ndarray(dtype=ti.i32, ndim=1), mean: ti.types.ndarray(dtype=ti.f64, ndim=2)):
+    """Each region's mean colour, once per round (the pairs read it, two per pair)."""
+    for r in range(label.shape[0]):
+        if label[r] == r:
+            m = _mean_colour(csum, count, r)
+            for c in ti.static(range(3)):
+                mean[r, c] = m[c]
+
+
+@ti.kernel
 def _best_neighbours(pa: ti.types.ndarray(dtype=ti.i32, ndim=1), pb: ti.types.ndarray(dtype=ti.i32, ndim=1),
                      weight: ti.types.ndarray(dtype=ti.i32, ndim=1), steps: ti.types.ndarray(dtype=ti.i64, ndim=1),
                      items: ti.i32, count: ti.types.ndarray(dtype=ti.i64, ndim=1),
-                     csum: ti.types.ndarray(dtype=ti.i64, ndim=2), best: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                     mean: ti.types.ndarray(dtype=ti.f64, ndim=2), best: ti.types.ndarray(dtype=ti.i64, ndim=1),
                      level: ti.f64, size_pass: ti.i32, min_size: ti.i64, max_chroma: ti.f64, veto: ti.f64):
     """Each valid pair offers itself to both of its regions: best[r] = min over (cost bits << 32 |
     other region), an integer minimum (ties to the lower region id). Costs are squared mean
@@ -530,7 +541,7 @@ def _best_neighbours(pa: ti.types.ndarray(dtype=ti.i32, ndim=1), pb: ti.types.nd
     for e in range(items):
         a = pa[e]
         b = pb[e]
-        d = _mean_colour(csum, count, a) - _mean_colour(csum, count, b)
+        d = ti.Vector([mean[a, 0] - mean[b, 0], mean[a, 1] - mean[b, 1], mean[a, 2] - mean[b, 2]], ti.f64)
         cost2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
         grey = (d[0] + d[1] + d[2]) / 3.0
         c0, c1, c2 = d[0] - grey, d[1] - grey, d[2] - grey
@@ -649,7 +660,7 @@ def _device_round(state, items, n, level, size_pass, min_size, max_chroma, veto,
     go through the hash table. ``first``: None in later rounds; in the first, "distinct" when the
     graph's edges are distinct pairs (used as they are), else "rekey" (all through the table).
     Returns the regions joined and the round's pairs (the next round's items)."""
-    label, count, csum, best, hook, targeted, merged, table, buffers = state
+    label, count, csum, mean, best, hook, targeted, merged, table, buffers = state
     which, m = items
     ua, ub, uw, us = buffers[which]
     pa, pb, pw, ps = buffers[1 - which]
@@ -689,7 +700,8 @@ def _device_round(state, items, n, level, size_pass, min_size, max_chroma, veto,
                            pa, pb, pw, ps)
             pairs = kept + int(u.sum())
     _clear_round(best, targeted)
-    _best_neighbours(pa, pb, pw, ps, pairs, count, csum, best, level, size_pass, int(min_size),
+    _mean_colours(csum, count, label, mean)
+    _best_neighbours(pa, pb, pw, ps, pairs, count, mean, best, level, size_pass, int(min_size),
                      float(max_chroma), float(veto))
     _choose_hooks(best, count, label, hook, targeted)
     merged[0] = 0
@@ -750,7 +762,7 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
         del first
         # the pair table (rows key, edges, steps) is made when a round first re-keys pairs, sized
         # for that round's, and grown when a later round re-keys more
-        state = (label, count, csum) + tuple(output_array(t, (n,), col) for t in (ti.i64, ti.i32, ti.i32)) \
+        state = (label, count, csum, output_array(ti.f64, (n, 3), col)) + tuple(output_array(t, (n,), col) for t in (ti.i64, ti.i32, ti.i32)) \
             + (output_array(ti.i32, (1,), col), [None, col], buffers)
         if n:
             _reset_regions(count, csum, kernel_array(col, np.float32), label)
