@@ -488,7 +488,8 @@ def _compact_pairs(table: ti.types.ndarray(dtype=ti.i64, ndim=2), size: ti.i32, 
                    offsets: ti.types.ndarray(dtype=ti.i32, ndim=1),
                    pa: ti.types.ndarray(dtype=ti.i32, ndim=1), pb: ti.types.ndarray(dtype=ti.i32, ndim=1),
                    weight: ti.types.ndarray(dtype=ti.i32, ndim=1), steps: ti.types.ndarray(dtype=ti.i64, ndim=1)):
-    """The table's pairs, in slot order, as a dense list from each block's offset (_table_counts)."""
+    """The table's pairs, in slot order, as a dense list from each block's offset (_table_counts);
+    every slot is left empty."""
     for blk in range(offsets.shape[0]):
         at = offsets[blk]
         for s in range(blk * block, ti.min(blk * block + block, size)):
@@ -499,6 +500,10 @@ def _compact_pairs(table: ti.types.ndarray(dtype=ti.i64, ndim=2), size: ti.i32, 
                 weight[at] = ti.cast(table[s, 1], ti.i32)
                 steps[at] = table[s, 2]
                 at += 1
+                # the slot emptied again: the table is clear for the next round
+                table[s, 0] = ti.i64(_EMPTY)
+                table[s, 1] = 0
+                table[s, 2] = 0
 
 
 def _blocks(items: int):
@@ -686,8 +691,8 @@ def _device_round(state, items, n, level, size_pass, min_size, max_chroma, veto,
             if table[0] is None or int(table[0].shape[0]) < 1 << bits:
                 table[0] = None
                 table[0] = output_array(ti.i64, (1 << bits, 3), table[1])
+                _clear_table(table[0], 1 << bits)      # then each round's compaction empties it
             table = table[0]
-            _clear_table(table, 1 << bits)
             _insert_pairs(pa, pb, cap - touched, touched, label, table, bits, n)
             _accumulate_pairs(pa, pb, pw, ps, cap - touched, touched, label, table, bits, n)
             tblock, t_blocks = _blocks(1 << bits)
