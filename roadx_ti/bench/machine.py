@@ -44,7 +44,7 @@ def _versions() -> dict:
     from importlib import metadata
 
     out = {}
-    for dist in ("roadx_ti", "taichi", "numpy", "scipy", "open3d-cpu", "open3d", "cloth-simulation-filter"):
+    for dist in ("roadx_ti", "taichi", "numpy", "scipy", "open3d-cpu", "open3d", "cloth-simulation-filter", "pykdtree"):
         try:
             out[dist] = metadata.version(dist)
         except metadata.PackageNotFoundError:

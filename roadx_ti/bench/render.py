@@ -227,7 +227,7 @@ def _problem_section(rows):
 
 # one colour per implementation in every panel
 _COLOURS = {"roadx_ti cpu": "C0", "roadx_ti vulkan": "C1", "roadx_ti cuda": "C2", "roadx_ti metal": "C4",
-            "numpy": "C7", "scipy": "C3", "open3d": "C5", "csf": "C6"}
+            "numpy": "C7", "scipy": "C3", "open3d": "C5", "csf": "C6", "pykdtree": "C8"}
 
 
 def plot_throughput(runs: list[dict], path: Path) -> None:
