@@ -717,6 +717,17 @@ def _device_round(state, items, n, level, size_pass, min_size, max_chroma, veto,
     return joined, (1 - which, pairs)
 
 
+def _quantised_steps(steps_up, steps_down, chunk: int = 1 << 16):
+    """int64 (E,) rint(up * STEP_SCALE) + rint(down * STEP_SCALE), a chunk at a time (no
+    full-length float temporaries)."""
+    up, down = np.asarray(steps_up, np.float64), np.asarray(steps_down, np.float64)
+    out = np.empty(len(up), np.int64)
+    for start in range(0, len(up), chunk):
+        part = slice(start, start + chunk)
+        out[part] = np.rint(up[part] * STEP_SCALE).astype(np.int64) + np.rint(down[part] * STEP_SCALE).astype(np.int64)
+    return out
+
+
 def _native_int64_atomics() -> bool:
     """Backends whose 64-bit integer atomics Taichi maps to hardware ones (CPU and CUDA); the
     SPIR-V backends (Vulkan, Metal) are given the host rounds (measured: lavapipe's i64
@@ -744,8 +755,7 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
     col = np.ascontiguousarray(colour, np.float32)
     a32 = np.ascontiguousarray(ea, np.int32)
     b32 = np.ascontiguousarray(eb, np.int32)
-    up_q = np.rint(np.asarray(steps_up, np.float64) * STEP_SCALE).astype(np.int64)
-    up_q += np.rint(np.asarray(steps_down, np.float64) * STEP_SCALE).astype(np.int64)   # up + down
+    up_q = _quantised_steps(steps_up, steps_down)
     host = (not _native_int64_atomics()) if host is None else bool(host)
     if host:
         label = np.arange(n, dtype=np.int64)
@@ -789,8 +799,11 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
             regions_left -= joined
             if joined < settle * regions_left:
                 break       # the level has settled: the rest of its merges are a thin tail
-    return _region_graph(np.asarray(to_numpy(label)).astype(np.int64), to_numpy(count), to_numpy(csum),
-                         a32, b32, np.asarray(steps_up, np.float64), np.asarray(steps_down, np.float64))
+    label, count, csum = np.asarray(to_numpy(label)).astype(np.int64), to_numpy(count), to_numpy(csum)
+    # the rounds' pair lists and table go before the final pair table is built
+    state = buffers = live = up_q = None
+    return _region_graph(label, count, csum, a32, b32, np.asarray(steps_up, np.float64),
+                         np.asarray(steps_down, np.float64))
 
 
 def _region_graph(label, count, csum, ea, eb, up, down):

@@ -142,9 +142,11 @@ class RoadRegions(Stage):
         ea, eb = regions.graph_edges(np.ascontiguousarray(indices[:, :gk]), np.ascontiguousarray(distances[:, :gk]),
                                      o.edge_factor * spacing)
         neighbours = np.where(distances <= o.edge_factor * spacing, indices, -1).astype(np.int32)
+        del indices, distances          # the rows live on in `neighbours`, the pairs in ea / eb
         gradient = regions.coarse_gradient(xyz, o.slope_cell)
         raw = regions.edge_steps(xyz, xyz[:, 2].copy(), gradient, ea, eb)
         height_noise = o.height_noise or MAD_TO_SIGMA * float(np.median(np.abs(raw))) / np.sqrt(2.0)
+        del raw
         filtered = regions.mode_heights(xyz, neighbours, gradient, o.filter_width * height_noise)
         steps = regions.edge_steps(xyz, filtered, gradient, ea, eb)
         step_sigma = MAD_TO_SIGMA * float(np.median(np.abs(steps)))
