@@ -41,7 +41,7 @@ def test_quick_run_rows_and_results_page(tmp_path):
     rows = run["rows"]
     got = {(r["stage"], r["impl"], r["backend"]) for r in rows}
     assert got == {("grid_min", "roadx_ti", "cpu"), ("grid_min", "numpy", "cpu"),
-                   ("knn", "roadx_ti", "cpu"), ("knn", "scipy", "cpu")}
+                   ("knn", "roadx_ti", "cpu"), ("knn", "scipy", "cpu"), ("knn", "pykdtree", "cpu")}
     for r in rows:
         assert REQUIRED <= set(r), REQUIRED - set(r)
         assert r["points"] == 10_000
