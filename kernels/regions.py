@@ -334,8 +334,7 @@ def pair_table(ra, rb, edges, up, down, n_regions):
     up2, down2 = np.where(flip, down, up), np.where(flip, up, down)
     a, b = np.minimum(ra, rb), np.maximum(ra, rb)
     key = a * n_regions + b
-    uk, inv = np.unique(key, return_inverse=True)
-    inv = inv.ravel()
+    uk, inv = _group_keys(key)
     return (uk // n_regions, uk % n_regions, np.bincount(inv, weights=edges, minlength=len(uk)),
             np.bincount(inv, weights=up2, minlength=len(uk)), np.bincount(inv, weights=down2, minlength=len(uk)))
 
@@ -401,6 +400,54 @@ def _find_slot(table: ti.template(), key: ti.i64, bits: ti.i32) -> ti.i32:
     while table[slot, 0] != key:
         slot = (slot + 1) & mask
     return slot
+
+
+@ti.kernel
+def _insert_keys(keys: ti.types.ndarray(dtype=ti.i64, ndim=1), table: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                 bits: ti.i32):
+    """Every key into an open-addressing key table (as _insert_pairs: atomic_min displacement,
+    the same table whatever the order)."""
+    mask = (1 << bits) - 1
+    for e in range(keys.shape[0]):
+        key = keys[e]
+        slot = _slot(key, bits)
+        for _ in range(1 << bits):
+            old = ti.atomic_min(table[slot], key)
+            if old == key or old == ti.i64(_EMPTY):
+                break
+            if old > key:
+                key = old
+            slot = (slot + 1) & mask
+
+
+@ti.kernel
+def _slots_of_keys(keys: ti.types.ndarray(dtype=ti.i64, ndim=1), table: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                   bits: ti.i32, out: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    mask = (1 << bits) - 1
+    for e in range(keys.shape[0]):
+        slot = _slot(keys[e], bits)
+        while table[slot] != keys[e]:
+            slot = (slot + 1) & mask
+        out[e] = slot
+
+
+def _group_keys(keys: np.ndarray):
+    """(sorted distinct keys, index of each key among them): np.unique(keys, return_inverse=True)
+    by a hash table in the kernels (one insertion and one lookup per key, a sort of the distinct
+    keys only) on backends with 64-bit atomics; numpy's sort of every key elsewhere."""
+    if not len(keys) or not _native_int64_atomics():
+        uk, inv = np.unique(keys, return_inverse=True)
+        return uk, inv.ravel()
+    bits = max(4, int(np.ceil(np.log2(len(keys) / MAX_LOAD))))
+    table = np.full(1 << bits, _EMPTY, np.int64)
+    _insert_keys(keys, table, bits)
+    slot = np.empty(len(keys), np.int32)
+    _slots_of_keys(keys, table, bits, slot)
+    used = np.flatnonzero(table != _EMPTY)
+    order = np.argsort(table[used], kind="stable")
+    rank = np.empty(1 << bits, np.int64)
+    rank[used[order]] = np.arange(len(used))
+    return table[used[order]], rank[slot]
 
 
 @ti.kernel

@@ -89,6 +89,17 @@ def test_region_merging_is_the_same_whatever_the_edge_order():
     assert sorted_run.n_regions < n / 5
 
 
+def test_final_pair_grouping_is_numpys_unique():
+    # the region graph's pairs: a hash table in the kernels where 64-bit atomics are native
+    keys = np.random.default_rng(3).integers(0, 5000, 200_000).astype(np.int64) * 7919
+    keys[::5] = keys[0]                                # a heavy duplicate
+    uk, inv = regions._group_keys(keys)
+    want_uk, want_inv = np.unique(keys, return_inverse=True)
+    assert np.array_equal(uk, want_uk) and np.array_equal(inv, want_inv.ravel())
+    empty = regions._group_keys(np.zeros(0, np.int64))
+    assert len(empty[0]) == 0 and len(empty[1]) == 0
+
+
 def test_coarse_gradient_of_a_plane():
     xyz = _plane(5000, noise=0.0)
     g = regions.coarse_gradient(xyz, 2.5)
