@@ -16,9 +16,10 @@ _JACOBI_SWEEPS = 8
 
 
 @ti.func
-def sym_eigen3(a: ti.math.mat3):
+def sym_eigen3(a: ti.math.mat3, vectors: ti.template() = True):
     """Eigen-decomposition of a symmetric 3x3 matrix: (eigenvalues ascending, eigenvectors as
-    columns in the same order)."""
+    columns in the same order). ``vectors`` False skips the eigenvectors (identity returned):
+    the same eigenvalues, bit for bit, from a smaller kernel."""
     scale = ti.max(ti.abs(a).max(), 1e-30)
     m = a / scale
     v = ti.math.mat3([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
@@ -48,7 +49,8 @@ def sym_eigen3(a: ti.math.mat3):
                 m = rot.transpose() @ m @ rot
                 m[p, q] = 0.0
                 m[q, p] = 0.0
-                v = v @ rot
+                if ti.static(vectors):
+                    v = v @ rot
     w = ti.math.vec3(m[0, 0], m[1, 1], m[2, 2]) * scale
     # sort ascending (three compare-swaps), carrying the eigenvector columns
     for pair in ti.static(range(3)):
@@ -58,11 +60,50 @@ def sym_eigen3(a: ti.math.mat3):
             tmp = w[i]
             w[i] = w[j]
             w[j] = tmp
-            for r in ti.static(range(3)):
-                tv = v[r, i]
-                v[r, i] = v[r, j]
-                v[r, j] = tv
+            if ti.static(vectors):
+                for r in ti.static(range(3)):
+                    tv = v[r, i]
+                    v[r, i] = v[r, j]
+                    v[r, j] = tv
     return w, v
+
+
+@ti.func
+def _neighbourhood_covariance(xyz: ti.template(), nbr: ti.template(), i: ti.i32):
+    """Covariance of point i and its neighbours about their centroid (coordinates relative to the
+    point), with the per-axis extent of the offsets and the largest squared distance."""
+    k = nbr.shape[1]
+    p = ti.math.vec3(xyz[i, 0], xyz[i, 1], xyz[i, 2])
+    total = ti.math.vec3(0.0)          # p's own offset is 0
+    lo = ti.math.vec3(0.0)
+    hi = ti.math.vec3(0.0)
+    far2 = 0.0
+    for r in range(k):
+        j = nbr[i, r]
+        d = ti.math.vec3(xyz[j, 0], xyz[j, 1], xyz[j, 2]) - p
+        total += d
+        lo = ti.min(lo, d)
+        hi = ti.max(hi, d)
+        far2 = ti.max(far2, d.dot(d))
+    centre = total / ti.cast(k + 1, ti.f32)
+    cov = ti.math.mat3(0.0)
+    dp = -centre
+    cov += dp.outer_product(dp)
+    for r in range(k):
+        j = nbr[i, r]
+        d = ti.math.vec3(xyz[j, 0], xyz[j, 1], xyz[j, 2]) - p - centre
+        cov += d.outer_product(d)
+    cov /= ti.cast(k + 1, ti.f32)
+    return cov, hi - lo, far2
+
+
+@ti.func
+def _curvature_of(w: ti.math.vec3) -> ti.f32:
+    out = 0.0
+    wsum = w.sum()
+    if wsum > 0:
+        out = w[0] / wsum
+    return out
 
 
 @ti.kernel
@@ -71,29 +112,8 @@ def _covariance_features(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.ty
                          curvature: ti.types.ndarray(dtype=ti.f32, ndim=1),
                          max_distance: ti.types.ndarray(dtype=ti.f32, ndim=1),
                          extent: ti.types.ndarray(dtype=ti.f32, ndim=2)):
-    k = nbr.shape[1]
     for i in range(xyz.shape[0]):
-        p = ti.math.vec3(xyz[i, 0], xyz[i, 1], xyz[i, 2])
-        total = ti.math.vec3(0.0)          # p's own offset is 0
-        lo = ti.math.vec3(0.0)
-        hi = ti.math.vec3(0.0)
-        far2 = 0.0
-        for r in range(k):
-            j = nbr[i, r]
-            d = ti.math.vec3(xyz[j, 0], xyz[j, 1], xyz[j, 2]) - p
-            total += d
-            lo = ti.min(lo, d)
-            hi = ti.max(hi, d)
-            far2 = ti.max(far2, d.dot(d))
-        centre = total / ti.cast(k + 1, ti.f32)
-        cov = ti.math.mat3(0.0)
-        dp = -centre
-        cov += dp.outer_product(dp)
-        for r in range(k):
-            j = nbr[i, r]
-            d = ti.math.vec3(xyz[j, 0], xyz[j, 1], xyz[j, 2]) - p - centre
-            cov += d.outer_product(d)
-        cov /= ti.cast(k + 1, ti.f32)
+        cov, span, far2 = _neighbourhood_covariance(xyz, nbr, i)
         w, v = sym_eigen3(cov)
         w = ti.max(w, 0.0)                  # rounding can leave a tiny negative l0
         nrm = ti.math.vec3(v[0, 0], v[1, 0], v[2, 0]).normalized()
@@ -102,12 +122,37 @@ def _covariance_features(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.ty
         for a in ti.static(range(3)):
             normal[i, a] = nrm[a]
             eigval[i, a] = w[a]
-            extent[i, a] = hi[a] - lo[a]
-        wsum = w.sum()
-        curvature[i] = 0.0
-        if wsum > 0:
-            curvature[i] = w[0] / wsum
+            extent[i, a] = span[a]
+        curvature[i] = _curvature_of(w)
         max_distance[i] = ti.sqrt(far2)
+
+
+@ti.kernel
+def _curvature(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.types.ndarray(dtype=ti.i32, ndim=2),
+               curvature: ti.types.ndarray(dtype=ti.f32, ndim=1)):
+    for i in range(xyz.shape[0]):
+        cov, _span, _far2 = _neighbourhood_covariance(xyz, nbr, i)
+        w, _v = sym_eigen3(cov, False)
+        curvature[i] = _curvature_of(ti.max(w, 0.0))
+
+
+def _check_rows(nbr, n):
+    if len(nbr.shape) != 2 or int(nbr.shape[0]) != n:
+        raise ValueError(f"knn_indices must have shape (n, k) with n={n}, got {tuple(nbr.shape)}")
+
+
+def curvature(xyz, knn_indices):
+    """float32 (n,): covariance_features' 'curvature' alone (the same values, bit for bit), from a
+    kernel without eigenvectors, normals and extents: less to compile where only it is needed
+    (the survey estimates)."""
+    pts = kernel_array(xyz, np.float32)
+    nbr = kernel_array(knn_indices, np.int32)
+    n = length(pts)
+    _check_rows(nbr, n)
+    out = output_array(ti.f32, (n,), xyz)
+    if n:
+        _curvature(pts, nbr, out)
+    return like_input(out, xyz)
 
 
 def covariance_features(xyz, knn_indices) -> dict:
@@ -122,8 +167,7 @@ def covariance_features(xyz, knn_indices) -> dict:
     pts = kernel_array(xyz, np.float32)
     nbr = kernel_array(knn_indices, np.int32)
     n = length(pts)
-    if len(nbr.shape) != 2 or int(nbr.shape[0]) != n:
-        raise ValueError(f"knn_indices must have shape (n, k) with n={n}, got {tuple(nbr.shape)}")
+    _check_rows(nbr, n)
     shapes = {"normal": (n, 3), "eigenvalues": (n, 3), "curvature": (n,), "max_distance": (n,),
               "extent": (n, 3)}
     out = {name: output_array(ti.f32, shape, xyz) for name, shape in shapes.items()}

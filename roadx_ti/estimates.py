@@ -48,7 +48,7 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
             area: float | None = None) -> dict:
     """The estimates of the module docstring for ``cloud``: a whole survey, or (with
     ``survey_points`` and ``area``) a uniform sample of one of that many points over that area."""
-    from roadx_ti.kernels.features import covariance_features
+    from roadx_ti.kernels.features import curvature as neighbourhood_curvature
     from roadx_ti.kernels.neighbors import knn
     from roadx_ti.kernels.regions import coarse_gradient
 
@@ -81,7 +81,7 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     dz = (xyz[b, 2] - xyz[a, 2]) - (g * (xyz[b, :2] - xyz[a, :2])).sum(axis=1)
     # smooth surfaces only: both ends among the flatter half of the points (crowns, walls and
     # edges have the curved neighbourhoods)
-    curvature = np.asarray(covariance_features(xyz, idx)["curvature"])
+    curvature = np.asarray(neighbourhood_curvature(xyz, idx))
     flat = curvature <= np.median(curvature)
     smooth = flat[a] & flat[b]
     dz = dz[smooth] if smooth.sum() >= 100 else dz
