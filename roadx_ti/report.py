@@ -249,13 +249,16 @@ def top_view_png(path, cloud, predicted: np.ndarray, *, truth: np.ndarray | None
 
 def _save_png(fig, path) -> None:
     """The figure as a 256-colour PNG (a quarter of the bytes of full colour for photo-like
-    scenes: 0.58 against 2.4 MB for the demo), atomically."""
-    import io as _io
-
+    scenes: 0.58 against 2.4 MB for the demo), atomically. Rendered straight to pixels (no PNG
+    encoded and decoded on the way) and written with zlib's default effort: 1.7 -> 0.6 s for the
+    4 M-point scene's picture, 3 % more bytes than with PIL's optimize."""
+    import numpy as np
     from PIL import Image
 
-    buffer = _io.BytesIO()
-    fig.savefig(buffer, dpi=DPI, format="png", facecolor="white")
-    image = Image.open(buffer).convert("RGB").quantize(256, method=Image.Quantize.FASTOCTREE)
+    fig.set_dpi(DPI)
+    fig.set_facecolor("white")
+    fig.canvas.draw()
+    pixels = np.asarray(fig.canvas.buffer_rgba())[..., :3]
+    image = Image.fromarray(np.ascontiguousarray(pixels)).quantize(256, method=Image.Quantize.FASTOCTREE)
     with atomic_output(path) as tmp:
-        image.save(tmp, format="PNG", optimize=True)
+        image.save(tmp, format="PNG")
