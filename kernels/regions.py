@@ -32,19 +32,25 @@ MAX_ROW = 33          # a point and at most 32 neighbours
 
 
 @ti.func
-def _median(v: ti.template(), count: ti.i32) -> ti.f32:
-    """Median of v[0:count] (sorted in place by insertion); the mean of the middle two for an
-    even count, as numpy's median."""
-    for a in range(1, count):
+def _insertion_sort(v: ti.template(), lo: ti.i32, hi: ti.i32):
+    """v[lo:hi] sorted in place (a register vector or an ndarray; short runs)."""
+    for a in range(lo + 1, hi):
         x = v[a]
         b = a
-        while b > 0:
+        while b > lo:
             if v[b - 1] > x:
                 v[b] = v[b - 1]
                 b -= 1
             else:
                 break
         v[b] = x
+
+
+@ti.func
+def _median(v: ti.template(), count: ti.i32) -> ti.f32:
+    """Median of v[0:count] (sorted in place); the mean of the middle two for an even count, as
+    numpy's median."""
+    _insertion_sort(v, 0, count)
     mid = count // 2
     out = v[mid]
     if count % 2 == 0:
@@ -238,19 +244,9 @@ def _edge_scatter(nbr: ti.types.ndarray(dtype=ti.i32, ndim=2), dist: ti.types.nd
 
 @ti.kernel
 def _sort_runs(offset: ti.types.ndarray(dtype=ti.i32, ndim=1), values: ti.types.ndarray(dtype=ti.i32, ndim=1)):
-    """Each run values[offset[r]:offset[r + 1]] sorted in place (insertion: runs are short)."""
+    """Each run values[offset[r]:offset[r + 1]] sorted in place (runs are short)."""
     for r in range(offset.shape[0] - 1):
-        lo = offset[r]
-        for a in range(lo + 1, offset[r + 1]):
-            x = values[a]
-            b = a
-            while b > lo:
-                if values[b - 1] > x:
-                    values[b] = values[b - 1]
-                    b -= 1
-                else:
-                    break
-            values[b] = x
+        _insertion_sort(values, offset[r], offset[r + 1])
 
 
 def graph_edges(indices, distances, max_length: float):
@@ -370,27 +366,32 @@ def _clear_table(table: ti.types.ndarray(dtype=ti.i64, ndim=2), size: ti.i32):
         table[i, 2] = 0
 
 
+@ti.func
+def _insert_key(table: ti.template(), key: ti.i64, bits: ti.i32):
+    """``key`` into column 0 of an open-addressing table: an integer atomic_min claims an empty
+    slot or displaces a larger key, which is carried on (keys in a slot only ever decrease, so
+    the table ends the same whatever the order: each key in one slot)."""
+    mask = (1 << bits) - 1
+    slot = _slot(key, bits)
+    for _ in range(1 << bits):
+        old = ti.atomic_min(table[slot, 0], key)
+        if old == key or old == ti.i64(_EMPTY):
+            break
+        if old > key:
+            key = old          # displaced: carry the larger key on
+        slot = (slot + 1) & mask
+
+
 @ti.kernel
 def _insert_pairs(ea: ti.types.ndarray(dtype=ti.i32, ndim=1), eb: ti.types.ndarray(dtype=ti.i32, ndim=1),
                   start: ti.i32, items: ti.i32, label: ti.types.ndarray(dtype=ti.i32, ndim=1),
                   table: ti.types.ndarray(dtype=ti.i64, ndim=2), bits: ti.i32, n: ti.i64):
-    """Items [start, start + items)'s region pairs into the open-addressing table: an integer
-    atomic_min claims an empty slot or displaces a larger key, which is carried on (keys in a
-    slot only ever decrease, so the table ends the same whatever the order: each key in one slot)."""
-    mask = (1 << bits) - 1
+    """Items [start, start + items)'s region pairs into the open-addressing table (_insert_key)."""
     for e in range(start, start + items):
         la = label[ea[e]]
         lb = label[eb[e]]
         if la != lb:
-            key = ti.min(la, lb) * n + ti.max(la, lb)
-            slot = _slot(key, bits)
-            for _ in range(1 << bits):
-                old = ti.atomic_min(table[slot, 0], key)
-                if old == key or old == ti.i64(_EMPTY):
-                    break
-                if old > key:
-                    key = old          # displaced: carry the larger key on
-                slot = (slot + 1) & mask
+            _insert_key(table, ti.min(la, lb) * n + ti.max(la, lb), bits)
 
 
 @ti.func
@@ -403,32 +404,17 @@ def _find_slot(table: ti.template(), key: ti.i64, bits: ti.i32) -> ti.i32:
 
 
 @ti.kernel
-def _insert_keys(keys: ti.types.ndarray(dtype=ti.i64, ndim=1), table: ti.types.ndarray(dtype=ti.i64, ndim=1),
+def _insert_keys(keys: ti.types.ndarray(dtype=ti.i64, ndim=1), table: ti.types.ndarray(dtype=ti.i64, ndim=2),
                  bits: ti.i32):
-    """Every key into an open-addressing key table (as _insert_pairs: atomic_min displacement,
-    the same table whatever the order)."""
-    mask = (1 << bits) - 1
     for e in range(keys.shape[0]):
-        key = keys[e]
-        slot = _slot(key, bits)
-        for _ in range(1 << bits):
-            old = ti.atomic_min(table[slot], key)
-            if old == key or old == ti.i64(_EMPTY):
-                break
-            if old > key:
-                key = old
-            slot = (slot + 1) & mask
+        _insert_key(table, keys[e], bits)
 
 
 @ti.kernel
-def _slots_of_keys(keys: ti.types.ndarray(dtype=ti.i64, ndim=1), table: ti.types.ndarray(dtype=ti.i64, ndim=1),
+def _slots_of_keys(keys: ti.types.ndarray(dtype=ti.i64, ndim=1), table: ti.types.ndarray(dtype=ti.i64, ndim=2),
                    bits: ti.i32, out: ti.types.ndarray(dtype=ti.i32, ndim=1)):
-    mask = (1 << bits) - 1
     for e in range(keys.shape[0]):
-        slot = _slot(keys[e], bits)
-        while table[slot] != keys[e]:
-            slot = (slot + 1) & mask
-        out[e] = slot
+        out[e] = _find_slot(table, keys[e], bits)
 
 
 def _group_keys(keys: np.ndarray):
@@ -439,10 +425,11 @@ def _group_keys(keys: np.ndarray):
         uk, inv = np.unique(keys, return_inverse=True)
         return uk, inv.ravel()
     bits = max(4, int(np.ceil(np.log2(len(keys) / MAX_LOAD))))
-    table = np.full(1 << bits, _EMPTY, np.int64)
+    table = np.full((1 << bits, 1), _EMPTY, np.int64)      # one column: the key
     _insert_keys(keys, table, bits)
     slot = np.empty(len(keys), np.int32)
     _slots_of_keys(keys, table, bits, slot)
+    table = table[:, 0]
     used = np.flatnonzero(table != _EMPTY)
     order = np.argsort(table[used], kind="stable")
     rank = np.empty(1 << bits, np.int64)
