@@ -794,3 +794,44 @@ def test_edge_growth_kernel_equals_sequential_reference(ti_arch, seed):
     assert margin > 1e-5                       # no decision within float32 noise of its threshold
     assert (got >= 0).sum() > (segment >= 0).sum() + 50      # the segments grew
     np.testing.assert_array_equal(got, want)
+
+
+def test_footprint_walls_join_and_a_hedge_beside_them_does_not(ti_arch):
+    """Footprint completion (roof_filter.attach_footprint): walls stand under the eaves, inside the
+    roof's outline, so the walls of the gable house join it; a clipped hedge 0.7-1.3 m outside the
+    outline (single returns: no foliage cue) does not. The footprint cell follows the measured
+    pulse spacing (3 spacings, at least 0.5 m); with the former fixed 1 m cell and 1 m wall reach
+    the hedge joined (on the six IGN tiles: hedges and bushes along walls)."""
+    from roadx_ti import estimates
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import ESTIMATES, StageContext
+    from roadx_ti.stages.roof_filter import RoofFilter
+    from roadx_ti.stages.roof_growing import RoofGrowing
+    from roadx_ti.stages.seeds import RoofSeeds
+
+    xyz, part, returns = gable_house_scene(spacing=0.2)
+    rng = np.random.default_rng(3)
+    hedge = np.column_stack([rng.uniform(1.0, 11.0, 1500), rng.uniform(-1.3, -0.7, 1500), rng.uniform(1.2, 2.2, 1500)])
+    xyz = np.concatenate([xyz, hedge])
+    part = np.concatenate([part, np.full(len(hedge), 5)])
+    returns = np.concatenate([returns, np.ones((len(hedge), 2), np.uint8)])
+    cloud = Cloud.from_world(xyz, origin=np.zeros(3), returns=returns)
+    measured = estimates.measure(cloud)
+    joined = {}
+    for name, options in (("auto", {}), ("fixed 1 m", {"footprint_cell": 1.0, "wall_reach": 1.0})):
+        ctx = StageContext(point_data={"height_above_ground": cloud.xyz[:, 2].copy()},
+                           facts={ESTIMATES: dict(measured)})
+        for stage in (RoofSeeds(), RoofGrowing(), RoofFilter(options)):
+            result = stage.run(cloud, ctx)
+            ctx.point_data.update(result.point_data)
+        building = result.labels == 6
+        wall = (part == 1) & (xyz[:, 2] >= 1.0)      # attach_min_height: lower returns are left out
+        joined[name] = (building[wall].mean(), building[part == 5].mean(), result.info)
+    wall, hedge_share, info = joined["auto"]
+    spacing = measured.get("pulse_spacing_m") or measured["point_spacing_m"]
+    assert info["footprint_cell_m"] == pytest.approx(max(0.5, 3.0 * spacing), rel=1e-3)
+    assert info["wall_reach_m"] == info["footprint_cell_m"]
+    assert wall > 0.95                         # the walls below the eaves
+    assert joined["fixed 1 m"][0] > 0.95
+    assert hedge_share < 0.02                  # the hedge beside the wall stays out
+    assert joined["fixed 1 m"][1] > 0.2        # the defect the spacing-scaled cell mends
