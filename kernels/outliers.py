@@ -1,4 +1,4 @@
-"""Statistical outlier removal (METHODS.md R2).
+"""Statistical outlier removal (METHODS.md R2) and low noise by extended local minimum (ELM).
 
 The per-point mean neighbour distance d runs on the device (``neighbors.knn_mean_distance``);
 the cloud statistics mu and sigma are two float64 sums on the host, in index order, so the
@@ -15,8 +15,10 @@ Conventions:
 
 import numpy as np
 
-from .common import is_ndarray, length, ndarray, to_numpy
+from .common import INT32_MAX, f32_from_order_key, f32_order_key, is_ndarray, kernel_array, length, like_input, ndarray, to_numpy
+from .grid_min import _fill_i32, sparse_cell_minimum
 from .neighbors import knn_mean_distance
+from .taichi_compat import ti
 
 MODES = ("upper", "two_sided")
 CONVENTIONS = ("open3d", "paper")
@@ -59,3 +61,100 @@ def sor_keep(xyz, k: int, std_ratio: float, *, mode: str = "upper", convention: 
         out.from_numpy(keep.astype(np.uint8))
         return out
     return keep
+
+
+# ------------------------------------------------------------------------------------------------
+# Low noise (extended local minimum, after PDAL's filters.elm): in every plan cell, the lowest points
+# are noise when a gap of more than ``threshold`` separates them from the next point of their cell
+# (filters.elm: the lowest one point; here a run of up to ``max_cluster`` points, since low returns
+# come in pairs and triples under one spot); repeated on the points left. Low outliers (multipath,
+# echoes off wet or glassy surfaces) hold a ground filter's cloth metres under the terrain.
+MAX_CLUSTER = 8
+
+
+@ti.kernel
+def _lowest_key(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                noise: ti.types.ndarray(dtype=ti.u8, ndim=1), picked: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                rank: ti.i32, key: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    """key[c] = min of the z order keys of cell c's points that are not noise and not picked yet."""
+    for i in cell:
+        c = cell[i]
+        if noise[i] == 0 and not _is_picked(picked, c, rank, i):
+            ti.atomic_min(key[c], f32_order_key(xyz[i, 2]))
+
+
+@ti.kernel
+def _pick_lowest(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                 noise: ti.types.ndarray(dtype=ti.u8, ndim=1), picked: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                 rank: ti.i32, key: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    """picked[c, rank] = the lowest index among those points whose z has key[c] (ties by index)."""
+    for i in cell:
+        c = cell[i]
+        if noise[i] == 0 and not _is_picked(picked, c, rank, i) and f32_order_key(xyz[i, 2]) == key[c]:
+            ti.atomic_min(picked[c, rank], i)
+
+
+@ti.func
+def _is_picked(picked: ti.template(), c: ti.i32, rank: ti.i32, i: ti.i32) -> ti.i32:
+    found = 0
+    for r in range(rank):
+        if picked[c, r] == i:
+            found = 1
+    return found
+
+
+@ti.kernel
+def _flag_low_runs(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), picked: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                   max_cluster: ti.i32, threshold: ti.f32, noise: ti.types.ndarray(dtype=ti.u8, ndim=1)) -> ti.i32:
+    """Per cell: the first gap above threshold among its lowest max_cluster + 1 points flags the
+    points below it."""
+    flagged = 0
+    for c in range(picked.shape[0]):
+        run = -1
+        for j in range(max_cluster):
+            if run < 0 and picked[c, j + 1] != INT32_MAX:
+                if xyz[picked[c, j + 1], 2] - xyz[picked[c, j], 2] > threshold:
+                    run = j
+        if run >= 0:
+            for j in range(run + 1):
+                noise[picked[c, j]] = ti.u8(1)
+            flagged += run + 1
+    return flagged
+
+
+def low_noise(xyz, cell: float = 10.0, threshold: float = 1.0, max_cluster: int = 1, max_rounds: int = 16,
+              origin=None):
+    """Low-noise flags (uint8 (n,), 1 = noise) by extended local minimum over plan cells of edge
+    ``cell`` m (from ``origin`` = (x0, y0) when given, so that cells can follow a world lattice):
+    at most ``max_rounds`` rounds, each flagging per cell its lowest remaining points, at most
+    ``max_cluster`` of them, when more than ``threshold`` m separate them from the next one (the
+    first such gap from below; max_cluster 1 is filters.elm's rule). A cell needs a point above
+    the gap, so one with a single point left flags nothing. Ties in z go to the lowest index: the
+    flags do not depend on thread timing or point order beyond that. numpy in, numpy out; a Taichi
+    ndarray in, an ndarray out."""
+    if cell <= 0:
+        raise ValueError(f"cell must be > 0, got {cell}")
+    if threshold < 0:
+        raise ValueError(f"threshold must be >= 0, got {threshold}")
+    if not 1 <= max_cluster <= MAX_CLUSTER:
+        raise ValueError(f"max_cluster must be in 1..{MAX_CLUSTER}, got {max_cluster}")
+    n = length(xyz)
+    if n == 0:
+        return np.zeros(0, np.uint8)
+    pts = kernel_array(xyz, "float32")
+    noise = ndarray(ti.u8, (n,))
+    noise.fill(0)
+    cell_of, _, col_row = sparse_cell_minimum(pts, cell, origin)
+    cell_of = kernel_array(cell_of, "int32")
+    cells = len(col_row)
+    key = ndarray(ti.i32, (cells,))
+    picked = ndarray(ti.i32, (cells, max_cluster + 1))
+    for _ in range(max_rounds):
+        picked.fill(INT32_MAX)
+        for rank in range(max_cluster + 1):
+            _fill_i32(key, INT32_MAX)
+            _lowest_key(pts, cell_of, noise, picked, rank, key)
+            _pick_lowest(pts, cell_of, noise, picked, rank, key)
+        if _flag_low_runs(pts, picked, max_cluster, float(threshold), noise) == 0:
+            break
+    return like_input(noise, xyz)

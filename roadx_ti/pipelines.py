@@ -24,7 +24,7 @@ log = logging.getLogger("roadx_ti")
 # What a pipeline runs when a config lists no stages (defaults of each stage's options).
 DEFAULT_STAGES = {
     "road": ["uniform_downsample", "sor", "ransac_planes", "grid_slope", "cloth_smooth", "color_growing"],
-    "roof": ["cloth_ground", "roof_seeds", "roof_growing", "roof_filter"],
+    "roof": ["low_noise", "cloth_ground", "roof_seeds", "roof_growing", "roof_filter"],
     "ground": ["cloth_ground"],
 }
 DEFAULT_OPTIONS = {"uniform_downsample": {"ratio": 1.0}}

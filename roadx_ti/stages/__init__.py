@@ -11,6 +11,7 @@ REGISTRY = {
     "uniform_downsample": "roadx_ti.stages.downsample:UniformDownsample",
     "voxel_downsample": "roadx_ti.stages.downsample:VoxelDownsample",
     "sor": "roadx_ti.stages.outliers:StatisticalOutlierRemoval",
+    "low_noise": "roadx_ti.stages.low_noise:LowNoise",
     "ransac_planes": "roadx_ti.stages.planes:RansacPlanes",
     "grid_slope": "roadx_ti.stages.grid_slope:GridSlope",
     "cloth_smooth": "roadx_ti.stages.cloth:ClothSmooth",
