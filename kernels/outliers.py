@@ -16,7 +16,7 @@ Conventions:
 import numpy as np
 
 from .common import INT32_MAX, f32_from_order_key, f32_order_key, is_ndarray, kernel_array, length, like_input, ndarray, to_numpy
-from .grid_min import _fill_i32, sparse_cell_minimum
+from .grid_min import _fill_i32, cell_minimum, dense_fits, sparse_cell_minimum
 from .neighbors import knn_mean_distance
 from .taichi_compat import ti
 
@@ -74,10 +74,13 @@ MAX_CLUSTER = 8
 
 @ti.kernel
 def _lowest_key(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                noise: ti.types.ndarray(dtype=ti.u8, ndim=1), picked: ti.types.ndarray(dtype=ti.i32, ndim=2),
-                rank: ti.i32, key: ti.types.ndarray(dtype=ti.i32, ndim=1)):
-    """key[c] = min of the z order keys of cell c's points that are not noise and not picked yet."""
-    for i in cell:
+                members: ti.types.ndarray(dtype=ti.i32, ndim=1), noise: ti.types.ndarray(dtype=ti.u8, ndim=1),
+                picked: ti.types.ndarray(dtype=ti.i32, ndim=2), rank: ti.i32,
+                key: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    """key[c] = min of the z order keys of cell c's member points that are not noise and not
+    picked yet."""
+    for t in members:
+        i = members[t]
         c = cell[i]
         if noise[i] == 0 and not _is_picked(picked, c, rank, i):
             ti.atomic_min(key[c], f32_order_key(xyz[i, 2]))
@@ -85,10 +88,12 @@ def _lowest_key(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.types.ndar
 
 @ti.kernel
 def _pick_lowest(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                 noise: ti.types.ndarray(dtype=ti.u8, ndim=1), picked: ti.types.ndarray(dtype=ti.i32, ndim=2),
-                 rank: ti.i32, key: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+                 members: ti.types.ndarray(dtype=ti.i32, ndim=1), noise: ti.types.ndarray(dtype=ti.u8, ndim=1),
+                 picked: ti.types.ndarray(dtype=ti.i32, ndim=2), rank: ti.i32,
+                 key: ti.types.ndarray(dtype=ti.i32, ndim=1)):
     """picked[c, rank] = the lowest index among those points whose z has key[c] (ties by index)."""
-    for i in cell:
+    for t in members:
+        i = members[t]
         c = cell[i]
         if noise[i] == 0 and not _is_picked(picked, c, rank, i) and f32_order_key(xyz[i, 2]) == key[c]:
             ti.atomic_min(picked[c, rank], i)
@@ -105,11 +110,13 @@ def _is_picked(picked: ti.template(), c: ti.i32, rank: ti.i32, i: ti.i32) -> ti.
 
 @ti.kernel
 def _flag_low_runs(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), picked: ti.types.ndarray(dtype=ti.i32, ndim=2),
-                   max_cluster: ti.i32, threshold: ti.f32, noise: ti.types.ndarray(dtype=ti.u8, ndim=1)) -> ti.i32:
+                   max_cluster: ti.i32, threshold: ti.f32, noise: ti.types.ndarray(dtype=ti.u8, ndim=1),
+                   active: ti.types.ndarray(dtype=ti.u8, ndim=1)) -> ti.i32:
     """Per cell: the first gap above threshold among its lowest max_cluster + 1 points flags the
-    points below it."""
+    points below it; active[c] = whether it did (only such cells can flag more)."""
     flagged = 0
     for c in range(picked.shape[0]):
+        active[c] = ti.u8(0)
         run = -1
         for j in range(max_cluster):
             if run < 0 and picked[c, j + 1] != INT32_MAX:
@@ -118,6 +125,7 @@ def _flag_low_runs(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), picked: ti.types
         if run >= 0:
             for j in range(run + 1):
                 noise[picked[c, j]] = ti.u8(1)
+            active[c] = ti.u8(1)
             flagged += run + 1
     return flagged
 
@@ -144,17 +152,33 @@ def low_noise(xyz, cell: float = 10.0, threshold: float = 1.0, max_cluster: int 
     pts = kernel_array(xyz, "float32")
     noise = ndarray(ti.u8, (n,))
     noise.fill(0)
-    cell_of, _, col_row = sparse_cell_minimum(pts, cell, origin)
-    cell_of = kernel_array(cell_of, "int32")
-    cells = len(col_row)
+    cell_of, cells = _plan_cells(pts, cell, origin)
     key = ndarray(ti.i32, (cells,))
     picked = ndarray(ti.i32, (cells, max_cluster + 1))
+    active = ndarray(ti.u8, (cells,))
+    members = kernel_array(np.arange(n, dtype=np.int32), "int32")
     for _ in range(max_rounds):
         picked.fill(INT32_MAX)
         for rank in range(max_cluster + 1):
             _fill_i32(key, INT32_MAX)
-            _lowest_key(pts, cell_of, noise, picked, rank, key)
-            _pick_lowest(pts, cell_of, noise, picked, rank, key)
-        if _flag_low_runs(pts, picked, max_cluster, float(threshold), noise) == 0:
+            _lowest_key(pts, cell_of, members, noise, picked, rank, key)
+            _pick_lowest(pts, cell_of, members, noise, picked, rank, key)
+        if _flag_low_runs(pts, picked, max_cluster, float(threshold), noise, active) == 0:
+            break
+        # the next round reads only the points of cells that flagged (the others' verdict is final)
+        in_active = to_numpy(active)[to_numpy(cell_of)] != 0
+        members = kernel_array(np.flatnonzero(in_active).astype(np.int32), "int32")
+        if length(members) == 0:
             break
     return like_input(noise, xyz)
+
+
+def _plan_cells(pts, cell: float, origin):
+    """(cell id per point, int32; number of cells): ids of the dense grid over the points' plan
+    bounding box (from ``origin``) when it is small, else compact ids of the occupied cells."""
+    if dense_fits(pts, cell, origin):
+        cell_of, _, n_cols = cell_minimum(pts, cell, origin)
+        rows = int(to_numpy(cell_of).max()) // n_cols + 1
+        return kernel_array(cell_of, "int32"), n_cols * rows
+    cell_of, _, col_row = sparse_cell_minimum(pts, cell, origin)
+    return kernel_array(cell_of, "int32"), len(col_row)

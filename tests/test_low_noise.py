@@ -58,6 +58,17 @@ def test_low_noise_equals_sequential_reference(ti_arch, seed):
     assert pairs[part == 2].mean() > 0.8 > single[part == 2].mean()      # low returns, pairs too
 
 
+def test_low_noise_far_strays_take_the_sparse_cells(ti_arch):
+    """Two strays 20 km away: the cells are the occupied ones (no dense grid over the gap), and
+    the flags are still the reference's."""
+    xyz, part = _terrain_with_low_returns(4)
+    xyz = np.concatenate([xyz, [[20_000.0, 15.0, 3.0], [20_013.0, 18.0, -40.0]]]).astype(np.float32)
+    got = np.asarray(outliers.low_noise(xyz, 10.0, 1.0, 2, origin=(0.0, 0.0)))
+    assert np.array_equal(got, reference_low_noise(xyz, 10.0, 1.0, 2, 16, (0.0, 0.0)))
+    assert got[-2:].tolist() == [0, 0]        # each alone in its cell: no point above a gap
+    assert got[:-2][part == 2].mean() > 0.8
+
+
 def test_low_noise_order_independent_and_empty(ti_arch):
     xyz, _ = _terrain_with_low_returns(2)
     perm = np.random.default_rng(5).permutation(len(xyz))
