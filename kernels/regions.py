@@ -702,12 +702,12 @@ def _device_round(state, items, n, level, size_pass, min_size, max_chroma, veto,
     label, count, csum, mean, best, hook, targeted, merged, table, buffers = state
     which, m = items
     ua, ub, uw, us = buffers[which]
-    pa, pb, pw, ps = buffers[1 - which]
     if first == "distinct":
         # the graph's edges are the first round's pairs as they are
         pa, pb, pw, ps = ua, ub, uw, us
         pairs, which = m, 1 - which
     else:
+        pa, pb, pw, ps = _write_buffer(buffers, 1 - which, m, ua)
         cap = int(pa.shape[0])
         block, n_blocks = _blocks(m)
         counts = output_array(ti.i32, (n_blocks, 2), pa)
@@ -749,6 +749,17 @@ def _device_round(state, items, n, level, size_pass, min_size, max_chroma, veto,
     if joined:
         _relabel(label, hook)
     return joined, (1 - which, pairs)
+
+
+def _write_buffer(buffers, index, needed, like):
+    """The item buffer ``buffers[index]`` a round writes its pairs into, made (or made again) when
+    it is missing, too small for ``needed`` pairs, or read-only (the caller's graph edges, which
+    the first rounds read in place). Where the pairs land does not depend on the capacity."""
+    if buffers[index] is None or index in buffers[2] or int(buffers[index][0].shape[0]) < needed:
+        buffers[index] = None          # let the old arrays go before the new ones are made
+        buffers[2].discard(index)
+        buffers[index] = tuple(output_array(t, (max(needed, 1),), like) for t in (ti.i32, ti.i32, ti.i32, ti.i64))
+    return buffers[index]
 
 
 def _quantised_steps(steps_up, steps_down, chunk: int = 1 << 16):
@@ -803,11 +814,12 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
         da, db = np.diff(a32), np.diff(b32)
         distinct = bool(np.all(a32 < b32) and np.all((da > 0) | ((da == 0) & (db > 0))))
         del da, db
-        # two item buffers (a round reads one and writes its pairs into the other), the first
-        # holding the graph edges: (a, b, edges, steps)
-        first = (a32.copy(), b32.copy(), np.ones(len(a32), np.int32), up_q)
-        buffers = (tuple(kernel_array(v, v.dtype) for v in first),
-                   tuple(output_array(t, (max(len(a32), 1),), col) for t in (ti.i32, ti.i32, ti.i32, ti.i64)))
+        # two item buffers (a round reads one and writes its pairs into the other; the written
+        # one is made when first needed, for the pairs it must hold), the first holding the graph
+        # edges: (a, b, edges, steps), read in place (index 0 read-only: a32 / b32 may be the
+        # caller's arrays), and the set of read-only buffers
+        first = (a32, b32, np.ones(len(a32), np.int32), up_q)
+        buffers = [tuple(kernel_array(v, v.dtype) for v in first), None, {0}]
         del first
         # the pair table (rows key, edges, steps) is made when a round first re-keys pairs, sized
         # for that round's, and grown when a later round re-keys more
@@ -816,6 +828,8 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
         if n:
             _reset_regions(count, csum, kernel_array(col, np.float32), label)
     live = (a32, b32, np.ones(len(a32), np.int64), up_q) if host else (0, len(a32))
+    if not host:
+        up_q = None        # the first buffer holds it; it goes when a round writes over that buffer
     schedule = [(float(v), 0) for v in levels] + ([(0.0, 1)] if min_size > 1 else [])
     rounds = 0
     regions_left = n
