@@ -42,9 +42,11 @@ non-roof point q joins a roof when
   that cell's roof surface (z within [z_min - surface_tol, z_max + surface_tol], any colour), or
   below the roof in a cell holding roof points (a wall return under its own roof edge, any colour:
   walls of flat roofs carry the orthophoto colour of the lawn beside them), or when it may join
-  off the surface (off_surface_ok: the caller passes "not vegetation-coloured");
+  off the surface (off_surface_ok 1: the caller passes "not vegetation"), or, with off_surface_ok
+  NEAR_SURFACE_ONLY, when it lies within near_tol of that z range (a chimney, vent or railing whose
+  pulses split, which the returns cue alone takes for foliage);
 - else q is *under a roof edge*: a roof cell within wall_reach (square window) has its lowest roof
-  point above z(q) + surface_tol, and off_surface_ok(q); it takes the segment of the nearest such
+  point above z(q) + surface_tol, and off_surface_ok(q) is 1; it takes the segment of the nearest such
   cell (ties: lower cell id).
 Every decision reads only the grid built from the roof points before any point joins, so the
 result does not depend on order (one pass, no chains).
@@ -65,6 +67,7 @@ from .common import (INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, i
 
 FOOTPRINT_CELLS_PER_POINT = 4
 FOOTPRINT_MIN_CELLS = 1 << 20
+NEAR_SURFACE_ONLY = 2            # off_surface_ok: may join inside a footprint near its surface only
 FOOTPRINT_BLOCK = 256            # cells per block edge of the blocked footprint grid
 
 
@@ -468,7 +471,7 @@ def _attach_footprint(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
                       first: ti.types.ndarray(dtype=ti.i32, ndim=1),
                       z_low: ti.types.ndarray(dtype=ti.i32, ndim=1),
                       z_high: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                      inside_cells: ti.i32, wall_cells: ti.i32, surface_tol: ti.f32,
+                      inside_cells: ti.i32, wall_cells: ti.i32, surface_tol: ti.f32, near_tol: ti.f32,
                       out: ti.types.ndarray(dtype=ti.i32, ndim=1)):
     for i in segment:
         label = segment[i]
@@ -500,11 +503,13 @@ def _attach_footprint(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
                     lo = f32_from_order_key(z_low[best_k])
                     hi = f32_from_order_key(z_high[best_k])
                     on_surface = z >= lo - surface_tol and z <= hi + surface_tol
+                    near_surface = z >= lo - near_tol and z <= hi + near_tol
                     # below the roof in a roof cell: a wall or eave return under the roof edge
                     under_own = best_d == 0 and z < lo - surface_tol
-                    if on_surface or under_own or off_surface_ok[i] != 0:
+                    ok = off_surface_ok[i]
+                    if on_surface or under_own or ok == 1 or (ok == NEAR_SURFACE_ONLY and near_surface):
                         label = segment[first[best_k]]
-                elif off_surface_ok[i] != 0:
+                elif off_surface_ok[i] == 1:
                     # under a roof edge: a roof cell nearby whose lowest roof point is above z
                     best_d = INT32_MAX
                     best_k = -1
@@ -527,12 +532,13 @@ def _attach_footprint(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
 
 def attach_to_footprints(xyz, segment, off_surface_ok=None, eligible=None, *, cell: float = 1.0,
                          inside_reach: float = 3.0, wall_reach: float = 1.0,
-                         surface_tol: float = 0.5):
+                         surface_tol: float = 0.5, near_tol: float = 0.0):
     """Segment label per point (int32 (n,)) after footprint completion (module docstring).
 
     xyz (n, 3) in m; segment (n,) int32 roof segment ids, -1 = none; off_surface_ok (n,) uint8
-    (default all 1): points that may join off a roof surface (inside a footprint above or below
-    it, or under a roof edge); eligible (n,) uint8 (default all 1): points that may join at all
+    (default all 1): 1 = may join off a roof surface (inside a footprint above or below it, or
+    under a roof edge), NEAR_SURFACE_ONLY (2) = may join inside a footprint within ``near_tol`` of
+    its roof cell's z range only (roof superstructures whose pulses split), 0 = on the surface only; eligible (n,) uint8 (default all 1): points that may join at all
     (the stage passes "high enough above ground"). cell, inside_reach, wall_reach, surface_tol in m.
     """
     if cell <= 0:
@@ -556,17 +562,18 @@ def attach_to_footprints(xyz, segment, off_surface_ok=None, eligible=None, *, ce
     reach = (int(math.ceil(round(inside_reach / cell, 9))), int(math.ceil(round(wall_reach / cell, 9))))
     ok = np.ones(n, np.uint8) if off_surface_ok is None else to_numpy(off_surface_ok).astype(np.uint8)
     elig = np.ones(n, np.uint8) if eligible is None else to_numpy(eligible).astype(np.uint8)
+    tols = (float(surface_tol), float(max(near_tol, surface_tol)))
     if n_cols * n_rows <= FOOTPRINT_CELLS_PER_POINT * n + FOOTPRINT_MIN_CELLS:
         _attach_on_grid(pts, seg, ok, elig, (x0, y0, cell), (0, 0, n_cols, n_rows), reach,
-                        surface_tol, out)
+                        tols, out)
         return like_input(out, segment)
     result = seg_np.astype(np.int32).copy()
-    _attach_by_blocks(host, seg_np, ok, elig, (x0, y0, cell), reach, surface_tol, result)
+    _attach_by_blocks(host, seg_np, ok, elig, (x0, y0, cell), reach, tols, result)
     out.from_numpy(result)
     return like_input(out, segment)
 
 
-def _attach_on_grid(pts, seg, ok, elig, lattice, window, reach, surface_tol, out):
+def _attach_on_grid(pts, seg, ok, elig, lattice, window, reach, tols, out):
     """The footprint kernels on the grid of ``window`` = (col0, row0, n_cols, n_rows) cells of
     the lattice (x0, y0, cell); every roof point of ``seg`` must lie inside the window."""
     x0, y0, cell = lattice
@@ -580,10 +587,10 @@ def _attach_on_grid(pts, seg, ok, elig, lattice, window, reach, surface_tol, out
     ok, elig = as_ndarray(ok, "uint8"), as_ndarray(elig, "uint8")
     _footprint_cells(pts, seg, x0, y0, float(cell), col0, row0, n_cols, first, z_low, z_high)
     _attach_footprint(pts, seg, ok, elig, x0, y0, float(cell), col0, row0, n_cols, n_rows, first,
-                      z_low, z_high, reach[0], reach[1], float(surface_tol), out)
+                      z_low, z_high, reach[0], reach[1], tols[0], tols[1], out)
 
 
-def _attach_by_blocks(xyz, seg, ok, elig, lattice, reach, surface_tol, result):
+def _attach_by_blocks(xyz, seg, ok, elig, lattice, reach, tols, result):
     """attach_to_footprints over blocks of FOOTPRINT_BLOCK cells holding or bordering roof cells
     (module docstring); writes the labels of the points of those blocks into ``result``."""
     x0, y0, cell = lattice
@@ -619,7 +626,7 @@ def _attach_by_blocks(xyz, seg, ok, elig, lattice, reach, surface_tol, result):
         part = np.empty(len(members), np.int32)
         _attach_on_grid(np.ascontiguousarray(xyz[members]), np.ascontiguousarray(seg[members], np.int32),
                         ok[members], elig[members], lattice, (col0, row0, size, size), reach,
-                        surface_tol, part)
+                        tols, part)
         inside = np.isin(members, core, assume_unique=True)
         result[members[inside]] = part[inside]
 

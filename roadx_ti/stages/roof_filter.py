@@ -129,6 +129,10 @@ class RoofFilterOptions(StageOptions):
                                                 "what lies further out is a hedge or a bush by the wall)")
     surface_tol: float = Field(0.5, ge=0, description="a point within this height (m) of its roof "
                                "cell's z range lies on the roof surface and joins whatever its colour")
+    superstructure_height: float = Field(1.5, ge=0, description="a point inside a footprint within this "
+                                         "height (m) of its roof cell's z range joins when only the returns "
+                                         "cue calls it foliage (chimneys, vents, railings, roof units split "
+                                         "pulses as foliage does; a colour cue still keeps it off)")
 
 
 def occupied_density(xy: np.ndarray, cell: float) -> float:
@@ -304,10 +308,19 @@ class RoofFilter(Stage):
             segment, roof, edges = self._grow_edges(cloud, ctx, segment, roof, height)
         attached = 0
         if o.attach_footprint and roof.any():
-            from roadx_ti.kernels.seeds import attach_to_footprints
+            from roadx_ti.kernels.seeds import NEAR_SURFACE_ONLY, attach_to_footprints
+            from roadx_ti.stages.roof_growing import VEGETATION_BY_RETURNS
 
             vegetation = ctx.point_data.get("vegetation")
-            off_surface_ok = None if vegetation is None else (np.asarray(vegetation) == 0).astype(np.uint8)
+            off_surface_ok = None
+            if vegetation is not None:
+                vegetation = np.asarray(vegetation)
+                # not vegetation: anywhere; foliage returns only (no colour says so) where most of
+                # the point's neighbours are not: near the roof surface (the edges of chimneys,
+                # vents, railings split pulses as foliage does, but stand among solid returns);
+                # colour, or inside a canopy: on the surface only
+                near = (vegetation == VEGETATION_BY_RETURNS) & ~self._in_foliage(ctx, vegetation != 0)
+                off_surface_ok = np.where(vegetation == 0, 1, np.where(near, NEAR_SURFACE_ONLY, 0)).astype(np.uint8)
             eligible = None if height is None else \
                 (np.asarray(height) >= o.attach_min_height).astype(np.uint8)
             # the footprints of the roofs as grown from their seeds: the rims edge growth added
@@ -315,7 +328,7 @@ class RoofFilter(Stage):
             grown = np.asarray(attach_to_footprints(
                 cloud.xyz, core, off_surface_ok, eligible,
                 cell=cell, inside_reach=o.inside_reach, wall_reach=wall_reach,
-                surface_tol=o.surface_tol))
+                surface_tol=o.surface_tol, near_tol=o.superstructure_height))
             grown = np.where(roof, segment, grown)
             attached = int(np.count_nonzero(grown >= 0) - np.count_nonzero(roof))
             segment, roof = grown, grown >= 0
@@ -332,6 +345,18 @@ class RoofFilter(Stage):
         if edges is not None:
             info["edges"] = edges
         return StageResult(labels=labels, segment_id=segment_id, info=info)
+
+    @staticmethod
+    def _in_foliage(ctx: StageContext, flagged: np.ndarray) -> np.ndarray:
+        """bool per point: at least half of its kNN neighbours (roof_seeds' graph) are flagged
+        vegetation; without the graph, every flagged point counts as in foliage."""
+        knn = ctx.facts.get("knn")
+        if knn is None or len(knn) != len(flagged):
+            return flagged.copy()
+        knn = np.asarray(knn)
+        valid = knn >= 0
+        hits = (flagged[np.where(valid, knn, 0)] & valid).sum(axis=1)
+        return 2 * hits >= np.maximum(valid.sum(axis=1), 1)
 
     def footprint_cell(self, ctx: StageContext) -> tuple[float, float]:
         """(footprint cell, wall reach) in m, from the options and the survey's pulse spacing."""

@@ -22,8 +22,8 @@ too. info 'vegetation_cue' says which cues ran: 'rgb_com', 'ndvi', 'returns' joi
 'none'.
 Writes point_data 'roof_segment' (int32, compact ids, -1 = none), 'edge_may_join' (uint8: no
 vegetation cue of this stage, colour or foliage return, and not isolated: the points roof_filter's
-edge completion may add), 'edge_may_join_all' (the same without the returns rule) and, with the colour rule or returns on, 'vegetation' (uint8: COM >
-com_threshold, or such a foliage return) for roof_filter's annex and footprint tests.
+edge completion may add), 'edge_may_join_all' (the same without the returns rule) and, with the colour rule or returns on, 'vegetation' (uint8 bits: 1 COM >
+com_threshold or NDVI, 2 such a foliage return) for roof_filter's annex and footprint tests.
 """
 from __future__ import annotations
 
@@ -33,6 +33,10 @@ from pydantic import Field
 from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.vegetation import DEFAULT_COM_THRESHOLD
+
+# point_data 'vegetation' bits: the colour cue (COM or NDVI) and the foliage-returns cue
+VEGETATION_BY_COLOUR = 1
+VEGETATION_BY_RETURNS = 2
 from roadx_ti.stages.base import MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
 
 
@@ -158,7 +162,7 @@ class RoofGrowing(Stage):
         if foliage_returns is not None:
             # roof_filter's annex and footprint tests treat these like vegetation-coloured points
             point_data["vegetation"] = (point_data.get("vegetation", np.zeros(n, np.uint8)) |
-                                        foliage_returns).astype(np.uint8)
+                                        (foliage_returns.astype(np.uint8) * VEGETATION_BY_RETURNS)).astype(np.uint8)
             info["foliage_returns"] = int(np.count_nonzero(foliage_returns))
         return StageResult(point_data=point_data, segment_id=segment, info=info)
 
