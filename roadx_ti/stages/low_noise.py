@@ -31,8 +31,8 @@ class LowNoiseOptions(StageOptions):
     max_cluster: int = Field(2, ge=1, le=MAX_CLUSTER, description="at most this many low points "
                              "under one gap are noise together (low returns come in pairs under one "
                              "spot; filters.elm: 1)")
-    max_rounds: int = Field(16, ge=1, le=256, description="rounds per cell: at most this many low "
-                            "points one under another are flagged in one cell")
+    max_rounds: int = Field(16, ge=1, le=256, description="rounds: at most this many runs of low "
+                            "points, one under another, are flagged in one cell")
 
 
 class LowNoise(Stage):
