@@ -74,10 +74,10 @@ def test_accuracy_report_json_is_strict(tmp_path, monkeypatch, capsys):
     from roadx_ti import accuracy
     row = {"dataset": "scene", "config": "roof_als.yaml", "points": 10, "seconds": 0.1, "type1": float("nan"),
            "type2": 0.0, "total": 0.0, "kappa": float("nan"), "stages": []}
-    monkeypatch.setattr(accuracy, "evaluate", lambda task, out, points, rows=None: [dict(row)])
+    monkeypatch.setattr(accuracy, "evaluate", lambda task, out, rows=None: [dict(row)])
     parser = argparse.ArgumentParser()
     accuracy.add_arguments(parser)
-    args = parser.parse_args(["--task", "roof", "--out", str(tmp_path), "--points", "1000"])
+    args = parser.parse_args(["--task", "roof", "--out", str(tmp_path), "--roof-sizes", "300k", "--roof-seeds", "0"])
     assert accuracy.main(args) == 0
     saved = strict_loads((tmp_path / "accuracy.json").read_text())
     assert saved["results"]["roof"][0]["kappa"] is None
