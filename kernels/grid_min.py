@@ -142,6 +142,13 @@ def sparse_cell_minimum(xyz, step: float, origin=None):
     if step <= 0:
         raise ValueError(f"grid step must be > 0, got {step}")
     pts = kernel_array(xyz, "float32")
+    cell, col_row = _sparse_cells(pts, step, origin, xyz)
+    return cell, _lowest_per_cell(pts, cell, len(col_row), xyz), col_row
+
+
+def _sparse_cells(pts, step: float, origin, reference):
+    """(compact cell id per point in (col, row) order, int32 like ``reference``; each cell's
+    (col, row), int64 (cells, 2)): the occupied cells of edge ``step`` (sparse_cell_minimum)."""
     host = pts.to_numpy() if is_ndarray(pts) else np.asarray(pts)
     x_min, y_min, _, _ = _grid_shape(_xy_bounds(host), step, origin)
     step32 = np.float32(step)
@@ -153,11 +160,28 @@ def sparse_cell_minimum(xyz, step: float, origin=None):
     keys, inverse = np.unique((col + _MAX_COORD) * span + (row + _MAX_COORD), return_inverse=True)
     cell_np = inverse.astype(np.int32).reshape(-1)
     cell = cell_np
-    if is_ndarray(xyz):
+    if is_ndarray(reference):
         cell = ndarray(ti.i32, (len(cell_np),))
         cell.from_numpy(cell_np)
-    col_row = np.column_stack([keys // span - _MAX_COORD, keys % span - _MAX_COORD])
-    return cell, _lowest_per_cell(pts, cell, len(keys), xyz), col_row
+    return cell, np.column_stack([keys // span - _MAX_COORD, keys % span - _MAX_COORD])
+
+
+def plan_cells(xyz, step: float, origin=None):
+    """(cell id per point, int32 like the input; number of cell ids) of the 2D cells of edge
+    ``step``: the dense grid's ids over the bounding box (from ``origin``) when it fits
+    (dense_fits), else sparse_cell_minimum's compact ids of the occupied cells. For kernels that
+    reduce per cell themselves (no lowest point computed)."""
+    if step <= 0:
+        raise ValueError(f"grid step must be > 0, got {step}")
+    pts = kernel_array(xyz, "float32")
+    n = int(pts.shape[0])
+    if n and dense_fits(pts, step, origin):
+        x_min, y_min, n_cols, n_rows = _grid_shape(_xy_bounds(pts), step, origin)
+        cell = output_array(ti.i32, (n,), xyz)
+        _cell_of_point(pts, cell, float(x_min), float(y_min), float(step), n_cols)
+        return like_input(cell, xyz), n_cols * n_rows
+    cell, col_row = _sparse_cells(pts, step, origin, xyz)
+    return cell, len(col_row)
 
 
 def _empty_as_minus_one(cell_lowest):

@@ -15,8 +15,8 @@ Conventions:
 
 import numpy as np
 
-from .common import INT32_MAX, f32_from_order_key, f32_order_key, is_ndarray, kernel_array, length, like_input, ndarray, to_numpy
-from .grid_min import _fill_i32, cell_minimum, dense_fits, sparse_cell_minimum
+from .common import INT32_MAX, f32_order_key, is_ndarray, kernel_array, length, like_input, ndarray, to_numpy
+from .grid_min import _fill_i32, plan_cells
 from .neighbors import knn_mean_distance
 from .taichi_compat import ti
 
@@ -152,7 +152,8 @@ def low_noise(xyz, cell: float = 10.0, threshold: float = 1.0, max_cluster: int 
     pts = kernel_array(xyz, "float32")
     noise = ndarray(ti.u8, (n,))
     noise.fill(0)
-    cell_of, cells = _plan_cells(pts, cell, origin)
+    cell_of, cells = plan_cells(pts, cell, origin)
+    cell_of = kernel_array(cell_of, "int32")
     key = ndarray(ti.i32, (cells,))
     picked = ndarray(ti.i32, (cells, max_cluster + 1))
     active = ndarray(ti.u8, (cells,))
@@ -172,13 +173,3 @@ def low_noise(xyz, cell: float = 10.0, threshold: float = 1.0, max_cluster: int 
             break
     return like_input(noise, xyz)
 
-
-def _plan_cells(pts, cell: float, origin):
-    """(cell id per point, int32; number of cells): ids of the dense grid over the points' plan
-    bounding box (from ``origin``) when it is small, else compact ids of the occupied cells."""
-    if dense_fits(pts, cell, origin):
-        cell_of, _, n_cols = cell_minimum(pts, cell, origin)
-        rows = int(to_numpy(cell_of).max()) // n_cols + 1
-        return kernel_array(cell_of, "int32"), n_cols * rows
-    cell_of, _, col_row = sparse_cell_minimum(pts, cell, origin)
-    return kernel_array(cell_of, "int32"), len(col_row)

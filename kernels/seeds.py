@@ -538,7 +538,8 @@ def attach_to_footprints(xyz, segment, off_surface_ok=None, eligible=None, *, ce
     xyz (n, 3) in m; segment (n,) int32 roof segment ids, -1 = none; off_surface_ok (n,) uint8
     (default all 1): 1 = may join off a roof surface (inside a footprint above or below it, or
     under a roof edge), NEAR_SURFACE_ONLY (2) = may join inside a footprint within ``near_tol`` of
-    its roof cell's z range only (roof superstructures whose pulses split), 0 = on the surface only; eligible (n,) uint8 (default all 1): points that may join at all
+    its roof cell's z range only (roof superstructures whose pulses split), 0 = on the surface
+    only; eligible (n,) uint8 (default all 1): points that may join at all
     (the stage passes "high enough above ground"). cell, inside_reach, wall_reach, surface_tol in m.
     """
     if cell <= 0:

@@ -144,6 +144,18 @@ def road_datasets(sizes=ROAD_SIZES, seeds=ROAD_SEEDS, large=ROAD_LARGE):
     return rows
 
 
+def roof_datasets(sizes=ROOF_SIZES, seeds=ROOF_SEEDS):
+    """The roof rows: (name, loader, truth classes, config, group, picture?); the group of a
+    synthetic scene is its size ('300 k', ...), None for real data; pictures of real data and of
+    the synthetic seed 0 only."""
+    rows = []
+    for name, load, classes, cfg in datasets("roof", sizes, seeds):
+        synthetic_scene = name.startswith("synthetic als-roof ")
+        group = name[len("synthetic als-roof "):].rsplit(" seed ", 1)[0] if synthetic_scene else None
+        rows.append((name, load, classes, cfg, group, not synthetic_scene or name.endswith(" seed 0")))
+    return rows
+
+
 def datasets(task: str, sizes=ROOF_SIZES, seeds=ROOF_SEEDS):
     """(name, loader, truth classes, config file) per dataset of the task; the roof task's synthetic
     als-roof scenes: every seed at every size (the roof matrix)."""
@@ -221,8 +233,7 @@ def evaluate(task: str, out: Path, rows=None) -> list[dict]:
     target = config.PIPELINE_TARGET[task]
     results = []
     if rows is None:
-        rows = [r + (_roof_group(r[0]), not r[0].startswith("synthetic") or r[0].endswith(" seed 0"))
-                for r in datasets(task)]
+        rows = road_datasets() if task == "road" else roof_datasets()
     for name, load, truth_classes, cfg_name, group, picture in rows:
         try:
             cloud = load()
@@ -254,13 +265,6 @@ def evaluate(task: str, out: Path, rows=None) -> list[dict]:
         log.info("%s: type I %.2f %%, type II %.2f %%, total %.2f %%, kappa %.4f (%.1f s)", name,
                  100 * row["type1"], 100 * row["type2"], 100 * row["total"], row["kappa"], seconds)
     return results
-
-
-def _roof_group(name: str) -> str | None:
-    """The roof matrix's group of a synthetic scene ('300 k', '1 M', ...), None for real data."""
-    if name.startswith("synthetic als-roof "):
-        return name[len("synthetic als-roof "):].rsplit(" seed ", 1)[0]
-    return None
 
 
 def dataset_png(out: Path, task: str, name: str, cloud, truth, predicted) -> Path:
@@ -383,8 +387,7 @@ def main(args) -> int:
     road_rows = road_datasets(tuple(parse_point_count(v) for v in args.road_sizes.split(",") if v.strip()), _seeds(args.road_seeds),
                               (parse_point_count(args.road_large), 0) if args.road_large else None)
     roof_sizes = tuple(parse_point_count(v) for v in args.roof_sizes.split(",") if v.strip())
-    roof_rows = [r + (_roof_group(r[0]), not r[0].startswith("synthetic") or r[0].endswith(" seed 0"))
-                 for r in datasets("roof", roof_sizes, _seeds(args.roof_seeds))]
+    roof_rows = roof_datasets(roof_sizes, _seeds(args.roof_seeds))
     results = {task: evaluate(task, out, road_rows if task == "road" else roof_rows) for task in tasks}
     command = (f"python -m roadx_ti accuracy --task {args.task} --road-sizes {args.road_sizes} "
                f"--road-seeds {args.road_seeds} --road-large '{args.road_large}' --roof-sizes {args.roof_sizes} "

@@ -60,3 +60,30 @@ def shared_data():
     if not SHARED_DATA.is_dir():
         pytest.skip(f"real data folder {SHARED_DATA} is absent")
     return SHARED_DATA
+
+
+def laz_delivery(cloud, path, scale: float):
+    """``cloud`` written as LAS 1.4 / point format 7 at coordinate ``scale`` (offsets: the floor of
+    its lowest corner), with the colour, intensity, returns and classes it carries, and read back:
+    the same survey as a file delivers it (invariance tests)."""
+    import laspy
+    import numpy as np
+
+    from roadx_ti import io
+
+    header = laspy.LasHeader(point_format=7, version="1.4")
+    world = cloud.world_xyz()
+    header.offsets = np.floor(world.min(axis=0))
+    header.scales = np.full(3, scale)
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = world[:, 0], world[:, 1], world[:, 2]
+    if cloud.rgb is not None:
+        las.red, las.green, las.blue = (cloud.rgb[:, c] for c in range(3))
+    if cloud.intensity is not None:
+        las.intensity = cloud.intensity
+    if cloud.returns is not None:
+        las.return_number, las.number_of_returns = cloud.returns[:, 0], cloud.returns[:, 1]
+    las.classification = cloud.classification
+    las.write(str(path))
+    return io.read(path)
+

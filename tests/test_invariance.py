@@ -4,14 +4,13 @@ instead of 16-bit colour, with its points shuffled, and thinned to half its dens
 agree on >= 99.5 % of the points the two runs share and E1 / E2 move by less than 1 point."""
 from __future__ import annotations
 
-import laspy
 import numpy as np
 import pytest
 
-from roadx_ti import config, io, metrics, pipelines, synthetic
+from roadx_ti import config, metrics, pipelines, synthetic
 from roadx_ti.cloud import Cloud
 from roadx_ti.stages.base import StageContext
-from tests.conftest import REPO, switch_backend
+from tests.conftest import REPO, laz_delivery, switch_backend
 
 SCENE = {"cpu": 300_000, "vulkan": 200_000}     # lavapipe runs Vulkan on the CPU, slowly
 SEED = 2
@@ -21,20 +20,6 @@ def _road(cloud: Cloud) -> np.ndarray:
     cfg = config.load(REPO / "configs" / "road_uav.yaml")
     result = pipelines.run(cloud, pipelines.build_stages(cfg.stage_list()), ctx=StageContext(seed=cfg.seed))
     return result.classification == 11
-
-
-def _laz(cloud: Cloud, path, scale: float) -> Cloud:
-    header = laspy.LasHeader(point_format=7, version="1.4")
-    world = cloud.world_xyz()
-    header.offsets = np.floor(world.min(axis=0))
-    header.scales = np.full(3, scale)
-    las = laspy.LasData(header)
-    las.x, las.y, las.z = world[:, 0], world[:, 1], world[:, 2]
-    las.red, las.green, las.blue = (cloud.rgb[:, c] for c in range(3))
-    las.intensity = cloud.intensity
-    las.classification = cloud.classification
-    las.write(str(path))
-    return io.read(path)
 
 
 def _scores(truth, road):
@@ -70,9 +55,9 @@ def _check_delivery(arch, scene, variant, tmp_path):
     truth = metrics.class_mask(scene.classification, [11])
     keep = np.arange(scene.n)                # variant point i is scene point keep[i]
     if variant == "laz_1mm":
-        other = _laz(scene, tmp_path / "s.laz", 0.001)
+        other = laz_delivery(scene, tmp_path / "s.laz", 0.001)
     elif variant == "laz_1cm":
-        other = _laz(scene, tmp_path / "s.laz", 0.01)
+        other = laz_delivery(scene, tmp_path / "s.laz", 0.01)
     elif variant == "colour_8bit":
         other = Cloud(xyz=scene.xyz, origin=scene.origin, rgb=(scene.rgb // 257).astype(np.uint16), color_depth=8,
                       intensity=scene.intensity, classification=scene.classification)

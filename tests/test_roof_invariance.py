@@ -2,17 +2,16 @@
 extraction, acceptance "the same invariance as the road issue"): in memory, through LAZ at 1 mm and
 1 cm coordinate scale, with 8-bit instead of 16-bit colour, with its points shuffled, and thinned to
 half its density; labels agree on >= 99.5 % of the points the two runs share. On a synthetic
-als-roof scene (colour, returns) and a real IGN Lidar HD tile (returns, no colour)."""
+als-roof scene (colour) and a real IGN Lidar HD tile (returns, no colour)."""
 from __future__ import annotations
 
-import laspy
 import numpy as np
 import pytest
 
 from roadx_ti import config, io, pipelines, synthetic
 from roadx_ti.cloud import Cloud
 from roadx_ti.stages.base import StageContext
-from tests.conftest import REPO, SHARED_DATA, switch_backend
+from tests.conftest import REPO, SHARED_DATA, laz_delivery, switch_backend
 
 IGN_TILE = "tiles/test_data_77055_627760_LA93_IGN69.laz"
 
@@ -21,22 +20,6 @@ def _roofs(cloud: Cloud) -> np.ndarray:
     cfg = config.load(REPO / "configs" / "roof_als.yaml")
     result = pipelines.run(cloud, pipelines.build_stages(cfg.stage_list()), ctx=StageContext(seed=cfg.seed))
     return result.classification == 6
-
-
-def _laz(cloud: Cloud, path, scale: float) -> Cloud:
-    header = laspy.LasHeader(point_format=7, version="1.4")
-    world = cloud.world_xyz()
-    header.offsets = np.floor(world.min(axis=0))
-    header.scales = np.full(3, scale)
-    las = laspy.LasData(header)
-    las.x, las.y, las.z = world[:, 0], world[:, 1], world[:, 2]
-    if cloud.rgb is not None:
-        las.red, las.green, las.blue = (cloud.rgb[:, c] for c in range(3))
-    if cloud.returns is not None:
-        las.return_number, las.number_of_returns = cloud.returns[:, 0], cloud.returns[:, 1]
-    las.classification = cloud.classification
-    las.write(str(path))
-    return io.read(path)
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +55,7 @@ def test_same_roofs_whatever_the_delivery(surveys, survey, variant, tmp_path):
     base = _BASELINE[survey]
     keep = np.arange(cloud.n)                  # variant point i is survey point keep[i]
     if variant in ("laz_1mm", "laz_1cm"):
-        other = _laz(cloud, tmp_path / "s.laz", 0.001 if variant == "laz_1mm" else 0.01)
+        other = laz_delivery(cloud, tmp_path / "s.laz", 0.001 if variant == "laz_1mm" else 0.01)
     elif variant == "colour_8bit":
         if cloud.rgb is None:
             pytest.skip("the IGN tile has no colour")

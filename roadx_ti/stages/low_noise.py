@@ -18,7 +18,7 @@ import numpy as np
 from pydantic import Field
 
 from roadx_ti.cloud import Cloud
-from roadx_ti.kernels.outliers import MAX_CLUSTER
+from roadx_ti.kernels.outliers import MAX_CLUSTER, low_noise
 from roadx_ti.stages.base import MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
 
 CLASS_LOW_NOISE = 7     # ASPRS: low point (noise)
@@ -45,8 +45,6 @@ class LowNoise(Stage):
         return max(MIN_BUFFER, float(options.cell))
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
-        from roadx_ti.kernels.outliers import low_noise
-
         o = self.options
         if cloud.n == 0:
             return StageResult(info={"removed": 0})

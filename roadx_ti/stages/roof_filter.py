@@ -261,7 +261,7 @@ class RoofFilter(Stage):
         else:
             density, density_source = occupied_density(cloud.xyz[:, :2], o.density_cell), "non_ground"
         min_points = density * o.min_roof_area
-        cell, wall_reach = self.footprint_cell(ctx)
+        cell, wall_reach = self.footprint_cell_and_wall_reach(ctx)
         sizes = np.bincount(segment[segment >= 0], minlength=count)
         distance = ctx.point_data.get("neighbour_distance")
         knn = ctx.facts.get("knn")
@@ -358,7 +358,7 @@ class RoofFilter(Stage):
         hits = (flagged[np.where(valid, knn, 0)] & valid).sum(axis=1)
         return 2 * hits >= np.maximum(valid.sum(axis=1), 1)
 
-    def footprint_cell(self, ctx: StageContext) -> tuple[float, float]:
+    def footprint_cell_and_wall_reach(self, ctx: StageContext) -> tuple[float, float]:
         """(footprint cell, wall reach) in m, from the options and the survey's pulse spacing."""
         o = self.options
         cell = o.footprint_cell

@@ -158,7 +158,7 @@ class RoofGrowing(Stage):
         point_data = {"roof_segment": segment, "edge_may_join": may_join.astype(np.uint8),
                       "edge_may_join_all": np.asarray(may_join_all, np.uint8)}
         if colour:
-            point_data["vegetation"] = np.asarray(colour["vegetation"], np.uint8)
+            point_data["vegetation"] = (np.asarray(colour["vegetation"]) != 0).astype(np.uint8) * np.uint8(VEGETATION_BY_COLOUR)
         if foliage_returns is not None:
             # roof_filter's annex and footprint tests treat these like vegetation-coloured points
             point_data["vegetation"] = (point_data.get("vegetation", np.zeros(n, np.uint8)) |
