@@ -10,7 +10,7 @@ import pytest
 from roadx_ti import config, metrics, pipelines, synthetic
 from roadx_ti.cloud import Cloud
 from roadx_ti.stages.base import StageContext
-from tests.conftest import REPO, laz_delivery, switch_backend
+from tests.conftest import REPO, deliver, switch_backend
 
 SCENE = {"cpu": 300_000, "vulkan": 200_000}     # lavapipe runs Vulkan on the CPU, slowly
 SEED = 2
@@ -53,18 +53,7 @@ def _check_delivery(arch, scene, variant, tmp_path):
         _BASELINE[arch] = _road(scene)
     base = _BASELINE[arch]
     truth = metrics.class_mask(scene.classification, [11])
-    keep = np.arange(scene.n)                # variant point i is scene point keep[i]
-    if variant == "laz_1mm":
-        other = laz_delivery(scene, tmp_path / "s.laz", 0.001)
-    elif variant == "laz_1cm":
-        other = laz_delivery(scene, tmp_path / "s.laz", 0.01)
-    elif variant == "colour_8bit":
-        other = Cloud(xyz=scene.xyz, origin=scene.origin, rgb=(scene.rgb // 257).astype(np.uint16), color_depth=8,
-                      intensity=scene.intensity, classification=scene.classification)
-    else:
-        rng = np.random.default_rng(1)
-        keep = rng.permutation(scene.n) if variant == "shuffled" else np.sort(rng.permutation(scene.n)[: scene.n // 2])
-        other = scene.subset(keep)
+    other, keep = deliver(scene, variant, tmp_path)     # variant point i is scene point keep[i]
     road = _road(other)
     agree = np.mean(road == base[keep])
     e1, e2 = _scores(truth[keep], road)

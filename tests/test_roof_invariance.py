@@ -11,7 +11,7 @@ import pytest
 from roadx_ti import config, io, pipelines, synthetic
 from roadx_ti.cloud import Cloud
 from roadx_ti.stages.base import StageContext
-from tests.conftest import REPO, SHARED_DATA, laz_delivery, switch_backend
+from tests.conftest import REPO, SHARED_DATA, deliver, switch_backend
 
 IGN_TILE = "tiles/test_data_77055_627760_LA93_IGN69.laz"
 
@@ -53,17 +53,8 @@ def test_same_roofs_whatever_the_delivery(surveys, survey, variant, tmp_path):
     if survey not in _BASELINE:
         _BASELINE[survey] = _roofs(cloud)
     base = _BASELINE[survey]
-    keep = np.arange(cloud.n)                  # variant point i is survey point keep[i]
-    if variant in ("laz_1mm", "laz_1cm"):
-        other = laz_delivery(cloud, tmp_path / "s.laz", 0.001 if variant == "laz_1mm" else 0.01)
-    elif variant == "colour_8bit":
-        if cloud.rgb is None:
-            pytest.skip("the IGN tile has no colour")
-        other = Cloud(xyz=cloud.xyz, origin=cloud.origin, rgb=(cloud.rgb // 257).astype(np.uint16), color_depth=8,
-                      returns=cloud.returns, classification=cloud.classification)
-    else:
-        rng = np.random.default_rng(1)
-        keep = rng.permutation(cloud.n) if variant == "shuffled" else np.sort(rng.permutation(cloud.n)[: cloud.n // 2])
-        other = cloud.subset(keep)
+    if variant == "colour_8bit" and cloud.rgb is None:
+        pytest.skip("the IGN tile has no colour")
+    other, keep = deliver(cloud, variant, tmp_path)     # variant point i is survey point keep[i]
     agree = np.mean(_roofs(other) == base[keep])
     assert agree >= 0.995, f"{survey} {variant}: labels agree on {100 * agree:.2f} % of the shared points"
