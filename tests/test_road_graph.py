@@ -1,0 +1,41 @@
+"""Road selection over a region graph (roadx_ti.road_graph): the vegetation cue that holds in shadow."""
+from __future__ import annotations
+
+import numpy as np
+
+from roadx_ti.kernels.regions import RegionGraph
+from roadx_ti.road_graph import Weights, excess_green, label_road
+
+
+def _street(lawn_rgb):
+    """Regions: 0 road (grey 80), 1 and 3 sidewalks on either side (grey 95, above kerbs),
+    2 a lawn continuous with the road (no kerb between them) of colour ``lawn_rgb``."""
+    count = np.array([2000.0, 800.0, 400.0, 800.0])
+    mean = np.array([[80, 80, 82], [95, 95, 97], lawn_rgb, [95, 95, 97]], np.float64)
+    pa, pb = np.array([0, 0, 0]), np.array([1, 2, 3])
+    edges = np.array([120.0, 60.0, 120.0])
+    up = np.array([110.0, 0.0, 110.0])        # road -> sidewalk: most boundary edges step up
+    down = np.zeros(3)
+    return RegionGraph(np.zeros(0, np.int32), count, mean * count[:, None], pa, pb, edges, up, down)
+
+
+def test_excess_green_is_the_same_in_shadow_and_in_sun():
+    sun = np.array([[64.0, 86.0, 50.0], [80.0, 80.0, 82.0]])
+    shade = 0.45 * sun
+    assert np.allclose(excess_green(sun), excess_green(shade))
+    assert excess_green(sun)[0] > 0.25 and abs(excess_green(sun)[1]) < 0.02
+
+
+def test_lawn_in_shadow_is_not_road_where_its_absolute_chroma_fades():
+    shaded_lawn = [30.0, 45.0, 22.0]           # chroma |rgb - grey| 16.6 < max_chroma 20, ExG 0.39
+    graph = _street(shaded_lawn)
+    road, _ = label_road(graph, 60.0)
+    assert road.tolist() == [True, False, False, False]
+    # the cue is what keeps it out: without it the lawn, continuous with the road, joins it
+    road_without, _ = label_road(graph, 60.0, Weights(green_cost=0.0))
+    assert road_without.tolist() == [True, False, True, False]
+
+
+def test_a_grey_patch_continuous_with_the_road_still_joins_it():
+    road, _ = label_road(_street([70.0, 70.0, 73.0]), 60.0)     # a shadow on the asphalt
+    assert road.tolist() == [True, False, True, False]
