@@ -11,7 +11,9 @@ binary labelling problem and solved exactly by one minimum cut (scipy's max-flow
   chroma or brightness differ (contrast-sensitive);
 - each region's own term is the log ratio of two colour densities at its mean colour: of the
   regions on the lower sides of kerbs (road samples) and of those on the upper sides (sidewalk
-  samples), weighted by their kerb edges: "road-like" is learnt from the scene itself. Strongly
+  samples), weighted by their kerb edges: "road-like" is learnt from the scene itself (optionally
+  block by block, ``colour_block``, so that a street of its own asphalt shade learns its own; off
+  by default: measured mixed, see ACCURACY.md's notes). Strongly
   chromatic regions lean to not road, and so do green ones by their excess green of chromatic
   coordinates, which a shadow does not change (a lawn in tree shadow has little absolute chroma).
 
@@ -43,6 +45,9 @@ class Weights:
     green_from: float = 0.10      # regions whose excess green 2g - r - b of chromatic coordinates
     green_full: float = 0.25      # ... exceeds this lean to not road, fully from this (vegetation,
     green_cost: float = 2.0       # ... also in shadow, where absolute chroma fades): per point
+    colour_block: float = 0.0     # m: learn the colour term from the kerbs in the 3 x 3 blocks of this
+                                  # edge around each region (0: one model for the whole scene)
+    colour_global: float = 0.25   # ... mixed with this share of the scene's model
     contrast: float = 12.0        # colour scale of the contrast-sensitive smoothness (chroma)
     bright_floor: float = 0.3     # smoothness across a brightness step keeps at least this share (0.7, 1.0 measured: no better)
     reference_density: float = 60.0   # points / m2 at which colour and smoothness balance as given
@@ -76,25 +81,53 @@ def excess_green(mean):
     return (2.0 * mean[:, 1] - mean[:, 0] - mean[:, 2]) / total
 
 
-def _colour_log_ratio(mean, lower, upper, weight, bandwidth):
-    """log(p_lower / p_upper) at every region's mean colour: weighted histograms of the sample
-    regions' mean colours (cells of half the bandwidth), smoothed by a Gaussian of the
-    bandwidth, read at each region's cell."""
+def _log_ratio_at(query, lo_mean, lo_w, up_mean, up_w, bandwidth):
+    """log(p_lower / p_upper) at the colours ``query``: weighted histograms of the sample colours
+    (cells of half the bandwidth), smoothed by a Gaussian of the bandwidth, read at each query's cell."""
     from scipy.ndimage import gaussian_filter
     cell = bandwidth / 2.0
     bins = int(np.ceil(256.0 / cell)) + 1
-    index = np.clip(np.floor(np.asarray(mean, np.float64) / cell).astype(np.int64), 0, bins - 1)
 
-    def density(sel, wt):
-        if len(sel) == 0 or wt.sum() <= 0:
-            return np.zeros(len(mean))
+    def cells(m):
+        return tuple(np.clip(np.floor(np.asarray(m, np.float64) / cell).astype(np.int64), 0, bins - 1).T)
+    at = cells(query)
+
+    def density(m, wt):
+        if len(m) == 0 or wt.sum() <= 0:
+            return np.zeros(len(query))
         grid = np.zeros((bins, bins, bins))
-        np.add.at(grid, tuple(index[sel].T), wt)
+        np.add.at(grid, cells(m), wt)
         grid = gaussian_filter(grid, sigma=2.0, mode="constant") / wt.sum()
-        return grid[tuple(index.T)]
+        return grid[at]
     floor = 1e-4 * (2.0 * np.pi * 4.0) ** -1.5      # about the old kernel floor, per cell
-    p_lo, p_up = density(lower, weight), density(upper, weight)
+    p_lo, p_up = density(lo_mean, lo_w), density(up_mean, up_w)
     return np.clip(np.log((p_lo + floor) / (p_up + floor)), -3.0, 3.0)
+
+
+def _colour_log_ratio(mean, lower, upper, weight, bandwidth, centroid=None, block=0.0, global_share=1.0):
+    """log(p_lower / p_upper) at every region's mean colour, the densities those of the sample
+    regions' mean colours (lower / upper sides of clear kerbs, weighted by their kerb edges).
+    With ``block`` > 0 and region centroids: each region's densities from the samples in the
+    3 x 3 blocks of that edge around its own (a street of its own asphalt shade learns its own
+    road colour), mixed with the scene's by ``global_share``."""
+    llr = _log_ratio_at(mean, mean[lower], weight, mean[upper], weight, bandwidth)
+    if block <= 0 or centroid is None or global_share >= 1.0 or len(lower) == 0:
+        return llr
+    cell = np.floor(np.asarray(centroid, np.float64) / block).astype(np.int64)
+    cell -= cell.min(axis=0)
+    width = int(cell[:, 1].max()) + 1
+    keys = cell[:, 0] * width + cell[:, 1]
+    out = llr.copy()
+    for key in np.unique(keys):
+        here = np.flatnonzero(keys == key)
+        bx, by = divmod(int(key), width)
+        lo = (np.abs(cell[lower, 0] - bx) <= 1) & (np.abs(cell[lower, 1] - by) <= 1)
+        up = (np.abs(cell[upper, 0] - bx) <= 1) & (np.abs(cell[upper, 1] - by) <= 1)
+        if not lo.any() or not up.any():
+            continue
+        local = _log_ratio_at(mean[here], mean[lower[lo]], weight[lo], mean[upper[up]], weight[up], bandwidth)
+        out[here] = (1.0 - global_share) * local + global_share * llr[here]
+    return out
 
 
 def _min_cut(unary_road, A, B, C, D, pa, pb, n):
@@ -123,8 +156,9 @@ def _min_cut(unary_road, A, B, C, D, pa, pb, n):
     return road[:n]
 
 
-def label_road(graph, density: float, w: Weights = Weights()):
-    """bool per region (road) and facts for the summary."""
+def label_road(graph, density: float, w: Weights = Weights(), centroid=None):
+    """bool per region (road) and facts for the summary. centroid: (R, 2) region centroids in
+    plan (m), for a colour term learnt block by block (Weights.colour_block)."""
     n = graph.n_regions
     pa, pb, count = graph.pa, graph.pb, graph.count
     if n == 0:
@@ -149,7 +183,8 @@ def label_road(graph, density: float, w: Weights = Weights()):
     clear = kerb > 0.5 * graph.edges
     lower = np.where(b_upper, pa, pb)[clear]
     upper = np.where(b_upper, pb, pa)[clear]
-    llr = _colour_log_ratio(mean, lower, upper, kerb[clear], w.colour_bandwidth)
+    llr = _colour_log_ratio(mean, lower, upper, kerb[clear], w.colour_bandwidth, centroid,
+                            w.colour_block, w.colour_global)
     # points per area vs edges per boundary length: keep the balance at any density
     balance = np.sqrt(w.reference_density / max(density, 1e-6))
     # vegetation in sun or shade (the absolute chroma above fades in shadow): ExG of the region's mean

@@ -39,3 +39,28 @@ def test_lawn_in_shadow_is_not_road_where_its_absolute_chroma_fades():
 def test_a_grey_patch_continuous_with_the_road_still_joins_it():
     road, _ = label_road(_street([70.0, 70.0, 73.0]), 60.0)     # a shadow on the asphalt
     assert road.tolist() == [True, False, True, False]
+
+
+def _two_streets():
+    """Street A (regions 0-2): asphalt grey 80 below sidewalks of 66, many kerb edges. Street B
+    (regions 3-5), 280 m away: its own darker asphalt, 67 (the shade of A's sidewalks), below
+    sidewalks of 55."""
+    count = np.array([4000.0, 1500.0, 1500.0, 1500.0, 600.0, 600.0])
+    grey = np.array([80.0, 66.0, 66.0, 67.0, 55.0, 55.0])
+    mean = np.repeat(grey[:, None], 3, axis=1)
+    pa, pb = np.array([0, 0, 3, 3]), np.array([1, 2, 4, 5])
+    edges = np.array([200.0, 200.0, 60.0, 60.0])
+    up = 0.9 * edges                          # each road steps up to its sidewalks
+    graph = RegionGraph(np.zeros(0, np.int32), count, mean * count[:, None], pa, pb, edges, up, np.zeros(4))
+    centroid = np.array([[20.0, 20.0]] * 3 + [[300.0, 20.0]] * 3)
+    return graph, centroid
+
+
+def test_a_street_of_its_own_asphalt_shade_learns_its_own_road_colour():
+    graph, centroid = _two_streets()
+    # one colour model for the scene: street B's asphalt looks like A's sidewalks
+    road, _ = label_road(graph, 60.0, Weights(), centroid=centroid)
+    assert road.tolist() == [True, False, False, False, False, False]
+    # learnt block by block: B's road is the lower side of B's own kerbs
+    road, _ = label_road(graph, 60.0, Weights(colour_block=40.0), centroid=centroid)
+    assert road.tolist() == [True, False, False, True, False, False]

@@ -158,7 +158,13 @@ class RoadRegions(Stage):
         graph = regions.merge_regions_by_colour(n, ea, eb, up, down, colour_f, levels, o.max_chroma_step,
                                                 o.step_veto, o.min_region_points, settle=o.settle)
         density = plan_density(xyz[:, :2])
-        road_region, facts = label_road(graph, density, Weights(**o.weights))
+        weights = Weights(**o.weights)
+        centroid = None
+        if weights.colour_block > 0:
+            count = np.maximum(graph.count, 1.0)
+            centroid = np.column_stack([np.bincount(graph.label, weights=xyz[:, c], minlength=graph.n_regions)
+                                        / count for c in (0, 1)])
+        road_region, facts = label_road(graph, density, weights, centroid=centroid)
         is_road = road_region[graph.label]
         for _ in range(o.boundary_passes):
             # the road's edge on the kerb itself: boundary points go to the side of their height
