@@ -114,15 +114,15 @@ def _colour_log_ratio(mean, lower, upper, weight, bandwidth, centroid=None, bloc
     if block <= 0 or centroid is None or global_share >= 1.0 or len(lower) == 0:
         return llr
     cell = np.floor(np.asarray(centroid, np.float64) / block).astype(np.int64)
-    cell -= cell.min(axis=0)
-    width = int(cell[:, 1].max()) + 1
-    keys = cell[:, 0] * width + cell[:, 1]
+    blocks, inverse = np.unique(cell, axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    # the regions of each block, in region order: one sort instead of a scan per block
+    members = np.split(np.argsort(inverse, kind="stable"), np.cumsum(np.bincount(inverse))[:-1])
+    cell_lo, cell_up = cell[lower], cell[upper]
     out = llr.copy()
-    for key in np.unique(keys):
-        here = np.flatnonzero(keys == key)
-        bx, by = divmod(int(key), width)
-        lo = (np.abs(cell[lower, 0] - bx) <= 1) & (np.abs(cell[lower, 1] - by) <= 1)
-        up = (np.abs(cell[upper, 0] - bx) <= 1) & (np.abs(cell[upper, 1] - by) <= 1)
+    for block_cell, here in zip(blocks, members):
+        lo = np.all(np.abs(cell_lo - block_cell) <= 1, axis=1)
+        up = np.all(np.abs(cell_up - block_cell) <= 1, axis=1)
         if not lo.any() or not up.any():
             continue
         local = _log_ratio_at(mean[here], mean[lower[lo]], weight[lo], mean[upper[up]], weight[up], bandwidth)
