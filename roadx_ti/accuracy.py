@@ -377,14 +377,46 @@ def render(task_results: dict, command: str) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _sizes_text(text: str) -> str:
+    """argparse type of a size list (300k,1M): checked here, so that a typo is a usage error."""
+    from roadx_ti.config import parse_point_count
+
+    for v in text.split(","):
+        if v.strip():
+            parse_point_count(v)
+    return text
+
+
+def _seeds_text(text: str) -> str:
+    """argparse type of a seed list (a-b or a,b,c)."""
+    try:
+        seeds = _seeds(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not seeds (a-b or a,b,c): {text!r}") from None
+    if any(s < 0 for s in seeds):
+        raise argparse.ArgumentTypeError(f"seeds must be >= 0, got {text!r}")
+    return text
+
+
+def _large_text(text: str) -> str:
+    """argparse type of --road-large: a point count, or '' / 'none' for no larger scene."""
+    from roadx_ti.config import parse_point_count
+
+    if text.strip().lower() in ("", "none"):
+        return ""
+    parse_point_count(text)
+    return text
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--task", choices=["road", "roof", "all"], default="all")
     p.add_argument("--out", default=str(REPO / "benchmarks" / "accuracy"))
-    p.add_argument("--roof-sizes", default="300k,1M,4M", help="roof matrix: synthetic scene sizes")
-    p.add_argument("--roof-seeds", default="0-9", help="roof matrix: seeds (a-b or a,b,c)")
-    p.add_argument("--road-sizes", default="300k,1M,4M", help="road matrix: synthetic scene sizes")
-    p.add_argument("--road-seeds", default="0-9", help="road matrix: seeds (a-b or a,b,c)")
-    p.add_argument("--road-large", default="16M", help="road matrix: one larger scene of seed 0 ('' for none)")
+    p.add_argument("--roof-sizes", default="300k,1M,4M", type=_sizes_text, help="roof matrix: synthetic scene sizes")
+    p.add_argument("--roof-seeds", default="0-9", type=_seeds_text, help="roof matrix: seeds (a-b or a,b,c)")
+    p.add_argument("--road-sizes", default="300k,1M,4M", type=_sizes_text, help="road matrix: synthetic scene sizes")
+    p.add_argument("--road-seeds", default="0-9", type=_seeds_text, help="road matrix: seeds (a-b or a,b,c)")
+    p.add_argument("--road-large", default="16M", type=_large_text,
+                   help="road matrix: one larger scene of seed 0 ('' or none for none)")
     p.add_argument("--backend", default="cpu")
 
 

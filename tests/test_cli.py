@@ -70,6 +70,18 @@ def test_eval_count_mismatch_is_data_error(tmp_path, road_scene):
     assert proc.returncode == 2 and "--truth-classes" in proc.stderr
 
 
+@pytest.mark.parametrize("args, option", [(("--road-large", "none", "--road-sizes", "1x"), "--road-sizes"),
+                                          (("--road-seeds", "1-b"), "--road-seeds"),
+                                          (("--roof-seeds", "a,b"), "--roof-seeds"),
+                                          (("--road-large", "0"), "--road-large")])
+def test_accuracy_bad_matrix_is_usage_error(tmp_path, args, option):
+    """A typo in the accuracy matrix is a one-line usage error before any scene is built."""
+    proc = run_cli("accuracy", "--out", str(tmp_path / "acc"), *args, timeout=120)
+    assert proc.returncode == 2 and option in proc.stderr
+    assert "Traceback" not in proc.stderr and "unexpected error" not in proc.stderr
+    assert not (tmp_path / "acc").exists()
+
+
 def test_info(road_scene):
     proc = run_cli("info", str(road_scene))
     assert proc.returncode == 0, proc.stderr

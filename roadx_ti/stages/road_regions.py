@@ -171,9 +171,10 @@ class RoadRegions(Stage):
             is_road = regions.boundary_vote(xyz, neighbours, gradient, is_road.astype(np.uint8),
                                             max(0.5 * o.kerb_min, 2.0 * step_sigma)).astype(bool)
         labels = np.where(is_road, CLASS_ROAD, CLASS_OTHER).astype(np.uint8)
-        estimates = {"point_spacing_m": round(spacing, 4), "density_per_m2": round(density, 2),
-                     "height_noise_m": round(height_noise, 4), "filtered_step_sigma_m": round(step_sigma, 4),
-                     "colour_noise": round(colour_noise, 3), "colour_levels": [round(v, 3) for v in levels]}
+        # plain floats: the log line and the summary JSON show numbers, not numpy reprs
+        estimates = {"point_spacing_m": round(float(spacing), 4), "density_per_m2": round(float(density), 2),
+                     "height_noise_m": round(float(height_noise), 4), "filtered_step_sigma_m": round(float(step_sigma), 4),
+                     "colour_noise": round(float(colour_noise), 3), "colour_levels": [round(float(v), 3) for v in levels]}
         ctx.log.info("road_regions: %s colour, estimates %s", source, estimates)
         return StageResult(labels=labels, segment_id=graph.label.astype(np.int32),
                            info={"color_source": source, "estimates": estimates, **facts,
