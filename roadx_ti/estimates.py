@@ -66,12 +66,12 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     # plan spacing of the full cloud: a sample of fraction f is 1/sqrt(f) sparser
     flat = np.ascontiguousarray(np.column_stack([xyz[:, :2], np.zeros(len(xyz), np.float32)]))
     nn_plan = knn(flat, 1)[1][:, 0]
-    out["point_spacing_m"] = round(float(np.median(nn_plan)) * np.sqrt(len(xyz) / total), 4)
+    out["point_spacing_m"] = round(float(np.median(nn_plan) * np.sqrt(len(xyz) / total)), 4)
     if cloud.returns is not None and (cloud.returns[pick, 1] > 1).any():
         first = np.flatnonzero(cloud.returns[pick, 0] <= 1)
         if len(first) >= 8:
             nn_first = knn(np.ascontiguousarray(flat[first]), 1)[1][:, 0]
-            out["pulse_spacing_m"] = round(float(np.median(nn_first)) * np.sqrt(len(xyz) / total), 4)
+            out["pulse_spacing_m"] = round(float(np.median(nn_first) * np.sqrt(len(xyz) / total)), 4)
     gradient = coarse_gradient(xyz, 2.5)
     a = np.repeat(np.arange(len(xyz)), k)
     b = idx.reshape(-1)
@@ -85,11 +85,11 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     flat = curvature <= np.median(curvature)
     smooth = flat[a] & flat[b]
     dz = dz[smooth] if smooth.sum() >= 100 else dz
-    out["height_noise_m"] = round(MAD_TO_SIGMA * float(np.median(np.abs(dz))) / np.sqrt(2.0), 4)
+    out["height_noise_m"] = round(float(MAD_TO_SIGMA * np.median(np.abs(dz)) / np.sqrt(2.0)), 4)
     rgb = cloud.rgb8()
     if rgb is not None and np.ptp(rgb) > 0:
         grey = rgb[pick].mean(axis=1)
-        out["colour_noise"] = round(MAD_TO_SIGMA * float(np.median(np.abs(grey[b] - grey[a]))) / np.sqrt(2.0), 3)
+        out["colour_noise"] = round(float(MAD_TO_SIGMA * np.median(np.abs(grey[b] - grey[a])) / np.sqrt(2.0)), 3)
     log.info("survey estimates: %s", out)
     return out
 
