@@ -46,7 +46,8 @@ NOTES = {
         "cars or under canopies let sidewalk or shadowed lot join the road (E2), and road pieces cut off "
         "by parked cars or deep shadow are dropped (E1); these are whole regions, so a scene's figures "
         "move by several points between near-identical deliveries (tests/test_invariance.py: 93.7-99.2 % "
-        "label agreement for 1 mm / 1 cm LAZ and half density; shuffled and 8-bit colour exact).",
+        "label agreement for 1 mm / 1 cm LAZ and half density; shuffled and 8-bit colour exact; "
+        "99.07-99.43 % on 2026-12-03 with slope smoothing).",
         "Tiled against untiled (4 M seed 0 through its LAZ, `--tile-size 50`, 16 tiles, 30 m buffers): "
         "99.62 % of the labels agree, tiled E1 3.33 % against 1.07 % untiled; most of the difference is "
         "one road corner of ~60 m2 that the tile's own cut leaves out (its colour model is learnt from "
@@ -71,6 +72,22 @@ NOTES = {
         "noisier where blocks hold few kerbs: 4 M median E1 2.29 -> 2.56 % (seed 0 1.77 -> 3.89 %), "
         "1 M seeds 2 / 7 E1 2.27 -> 4.10 %, E2 0.46 -> 1.53 %; 300 k scenes unchanged (one block "
         "neighbourhood covers them). Kept off by default (2026-12-03).",
+        "The block model's densities mixed with the scene's in proportion to their kerb samples "
+        "(shrinkage towards the scene's model, prior 0.1-2 typical blocks' samples) instead of a fixed "
+        "share: at 0.25, 1 M seed 2 is back to 2.27 % and 4 M seed 8 still found (2.49 %), but 1 M "
+        "seed 7 E2 0.46 -> 1.53 % and 4 M seed 0 E1 1.77 -> 3.88 % stay (a road piece at the scene's "
+        "corner whose blocks see sidewalk of its grey), 4 M median E1 2.53 %; from a prior of 1 seed 8 "
+        "is lost again (7.36 %). Not adopted (2026-12-03).",
+        "R5 with the CSF package's slope smoothing (`cloth_smooth.slope_smooth`, 1c6faae): on a sloped "
+        "street the cloth stayed more than C_t off the ground along the survey's upslope edge, and a "
+        "band of road there was dropped (300 k seed 4: 4,711 road points within 3.5 m of the edge, E1 "
+        "5.48 -> 2.11 %, E2 1.68 -> 2.11 %). Elsewhere it moves scenes by knife-edge flips of the cut "
+        "(1 M seed 4 E2 0.82 -> 2.07 %: a sidewalk piece, changed by 100 of the cut's input points) "
+        "(2026-12-03).",
+        "1 M seed 9 (E2 3.50 %): the false road is a paved yard (grey 156, about 18 k points, truth "
+        "class 2) continuous with the road and no kerb between them: colour (llr 0.16) and height do "
+        "not tell it from road; its shape (a blob, not a ribbon of a carriageway's width) is the cue "
+        "the selection does not use yet (2026-12-03).",
         "The seconds column is wall time in process on the shared 2-core machine; the 2026-12-01 run "
         "shared it with two other jobs, so its times are inflated (benchmarks/RESULTS.md has the timed "
         "A/B).",
