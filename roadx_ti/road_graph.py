@@ -18,7 +18,9 @@ binary labelling problem and solved exactly by one minimum cut (scipy's max-flow
   coordinates, which a shadow does not change (a lawn in tree shadow has little absolute chroma).
 
 After the cut, road components (over continuous pairs) that are small or lack kerb evidence are
-dropped, and not-road groups mostly enclosed by road (markings, shadow patches, manholes) join it.
+dropped (a large one too when no kerb at all lies along it, unless it is the largest: a paved yard
+of the asphalt's grey is a blob apart from the street network), and not-road groups mostly
+enclosed by road (markings, shadow patches, manholes) join it.
 All energies are integers after scaling, so the cut is deterministic.
 """
 from __future__ import annotations
@@ -53,6 +55,8 @@ class Weights:
     reference_density: float = 60.0   # points / m2 at which colour and smoothness balance as given
     keep_area: float = 300.0      # a road component stays when it covers this many m2 ...
     keep_kerb: float = 0.15       # ... or this share of its boundary edges are kerbs below which it lies
+    keep_area_kerb: float = 0.01  # a large component needs this share of kerbs below which it lies too
+                                  # (the largest component excepted: the street network itself)
     min_area: float = 4.0         # and it covers at least this many m2
     absorb: float = 0.6           # a not-road group with this share of its boundary on road joins it
     absorb_max: float = 0.1       # ... when not larger than this share of the road
@@ -207,8 +211,9 @@ def _components(n, pa, pb, link):
 
 
 def _keep_components(graph, road, kerb, b_upper, density, w):
-    """Road components over continuous pairs: keep the large ones (area) and those bounded by
-    kerbs they lie below (a share of their own boundary): absolute rules, so that a street
+    """Road components over continuous pairs: keep the large ones (area, with at least
+    keep_area_kerb of their boundary kerbs they lie below, or the largest) and those bounded by
+    kerbs they lie below (keep_kerb of their own boundary): absolute rules, so that a street
     segment cut off by parked cars counts the same in a small scene and a large one."""
     n, pa, pb = graph.n_regions, graph.pa, graph.pb
     if not road.any():
@@ -223,7 +228,10 @@ def _keep_components(graph, road, kerb, b_upper, density, w):
     out_b = road[pb] & ~road[pa]
     boundary = np.bincount(np.concatenate([comp[pa[out_a]], comp[pb[out_b]]]),
                            weights=np.concatenate([graph.edges[out_a], graph.edges[out_b]]), minlength=nc)
-    keep = ((area >= w.keep_area) | (evidence >= w.keep_kerb * np.maximum(boundary, 1e-9))) & (area >= w.min_area)
+    large = area >= w.keep_area
+    if w.keep_area_kerb > 0:
+        large &= (evidence >= w.keep_area_kerb * np.maximum(boundary, 1e-9)) | (area == area.max())
+    keep = (large | (evidence >= w.keep_kerb * np.maximum(boundary, 1e-9))) & (area >= w.min_area)
     return road & keep[comp]
 
 

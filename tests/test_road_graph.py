@@ -64,3 +64,25 @@ def test_a_street_of_its_own_asphalt_shade_learns_its_own_road_colour():
     # learnt block by block: B's road is the lower side of B's own kerbs
     road, _ = label_road(graph, 60.0, Weights(colour_block=40.0), centroid=centroid)
     assert road.tolist() == [True, False, False, True, False, False]
+
+
+def _street_and_yard():
+    """Regions: 0 road (grey 80) below kerbs to its sidewalks 1 and 2 (grey 95); 3 a paved yard
+    of the road's grey (333 m2 at 60 points/m2) that touches only 4, a lot (grey 140) continuous
+    with sidewalk 1: no kerb anywhere along the yard."""
+    count = np.array([40000.0, 3000.0, 3000.0, 20000.0, 6000.0])
+    grey = np.array([80.0, 95.0, 95.0, 81.0, 140.0])
+    mean = np.repeat(grey[:, None], 3, axis=1)
+    pa, pb = np.array([0, 0, 3, 1]), np.array([1, 2, 4, 4])
+    edges = np.array([400.0, 400.0, 300.0, 200.0])
+    up = np.array([360.0, 360.0, 0.0, 0.0])
+    return RegionGraph(np.zeros(0, np.int32), count, mean * count[:, None], pa, pb, edges, up, np.zeros(4))
+
+
+def test_a_large_component_without_kerbs_apart_from_the_street_is_not_road():
+    graph = _street_and_yard()
+    road, _ = label_road(graph, 60.0)
+    assert road.tolist() == [True, False, False, False, False]
+    # the cut takes the yard with the lot it touches; without the kerb share, their area keeps them
+    road, _ = label_road(graph, 60.0, Weights(keep_area_kerb=0.0))
+    assert road.tolist() == [True, False, False, True, True]
