@@ -84,10 +84,11 @@ NOTES = {
         "5.48 -> 2.11 %, E2 1.68 -> 2.11 %). Elsewhere it moves scenes by knife-edge flips of the cut "
         "(1 M seed 4 E2 0.82 -> 2.07 %: a sidewalk piece, changed by 100 of the cut's input points) "
         "(2026-12-03).",
-        "1 M seed 9 (E2 3.50 %): the false road is a paved yard (grey 156, about 18 k points, truth "
-        "class 2) continuous with the road and no kerb between them: colour (llr 0.16) and height do "
-        "not tell it from road; its shape (a blob, not a ribbon of a carriageway's width) is the cue "
-        "the selection does not use yet (2026-12-03).",
+        "1 M seed 9 (E2 3.50 % at 1c6faae): the false road was a paved yard (grey 156, about 19 k "
+        "points in 59 regions, truth class 2) apart from the street network, its whole boundary "
+        "continuous (2,017 of 2,018 edges), its colour mildly road-like (llr 0.16), kept by its area "
+        "alone. Since abf0624 a large component stays only with kerbs below it along 1 % of its "
+        "boundary, or as the largest component: 0.43 %, no other scene changed (2026-12-03).",
         "The seconds column is wall time in process on the shared 2-core machine; the 2026-12-01 run "
         "shared it with two other jobs, so its times are inflated (benchmarks/RESULTS.md has the timed "
         "A/B).",
