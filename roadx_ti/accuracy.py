@@ -395,35 +395,42 @@ def render(task_results: dict, command: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _sizes_text(text: str) -> str:
-    """argparse type of a size list (300k,1M): checked here, so that a typo is a usage error."""
+def _sizes(text: str) -> tuple:
+    """Point counts of a size list (300k,1M); argparse.ArgumentTypeError on a bad one."""
     from roadx_ti.config import parse_point_count
 
-    for v in text.split(","):
-        if v.strip():
-            parse_point_count(v)
-    return text
+    return tuple(parse_point_count(v) for v in text.split(",") if v.strip())
 
 
-def _seeds_text(text: str) -> str:
-    """argparse type of a seed list (a-b or a,b,c)."""
-    try:
-        seeds = _seeds(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not seeds (a-b or a,b,c): {text!r}") from None
-    if any(s < 0 for s in seeds):
-        raise argparse.ArgumentTypeError(f"seeds must be >= 0, got {text!r}")
-    return text
+def _seeds(text: str):
+    if "-" in text:
+        a, b = text.split("-")
+        return tuple(range(int(a), int(b) + 1))
+    return tuple(int(v) for v in text.split(",") if v.strip())
 
 
-def _large_text(text: str) -> str:
-    """argparse type of --road-large: a point count, or '' / 'none' for no larger scene."""
+def _large(text: str) -> int | None:
+    """--road-large: a point count, or None for '' / 'none' (no larger scene)."""
     from roadx_ti.config import parse_point_count
 
-    if text.strip().lower() in ("", "none"):
-        return ""
-    parse_point_count(text)
-    return text
+    return None if text.strip().lower() in ("", "none") else parse_point_count(text)
+
+
+def _checked(parse, what: str):
+    """An argparse type that parses ``text`` with ``parse`` (so that a typo is a usage error before
+    any scene is built) and keeps the text itself, which the report's command line quotes."""
+    def check(text: str) -> str:
+        try:
+            parse(text)
+        except ValueError:          # argparse.ArgumentTypeError passes through with its own message
+            raise argparse.ArgumentTypeError(f"not {what}: {text!r}") from None
+        return text
+    return check
+
+
+_sizes_text = _checked(_sizes, "point counts")
+_seeds_text = _checked(_seeds, "seeds (a-b or a,b,c)")
+_large_text = _checked(_large, "a point count")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -438,26 +445,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--backend", default="cpu")
 
 
-def _seeds(text: str):
-    if "-" in text:
-        a, b = text.split("-")
-        return tuple(range(int(a), int(b) + 1))
-    return tuple(int(v) for v in text.split(",") if v.strip())
-
-
 def main(args) -> int:
     from roadx_ti import backend, jsonio
-    from roadx_ti.config import parse_point_count
     from roadx_ti.io.atomic import atomic_output
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     backend.init(args.backend)
     tasks = ["road", "roof"] if args.task == "all" else [args.task]
-    road_rows = road_datasets(tuple(parse_point_count(v) for v in args.road_sizes.split(",") if v.strip()), _seeds(args.road_seeds),
-                              (parse_point_count(args.road_large), 0) if args.road_large else None)
-    roof_sizes = tuple(parse_point_count(v) for v in args.roof_sizes.split(",") if v.strip())
-    roof_rows = roof_datasets(roof_sizes, _seeds(args.roof_seeds))
+    large = _large(args.road_large)
+    road_rows = road_datasets(_sizes(args.road_sizes), _seeds(args.road_seeds), (large, 0) if large else None)
+    roof_rows = roof_datasets(_sizes(args.roof_sizes), _seeds(args.roof_seeds))
     results = {task: evaluate(task, out, road_rows if task == "road" else roof_rows) for task in tasks}
     command = (f"python -m roadx_ti accuracy --task {args.task} --road-sizes {args.road_sizes} "
                f"--road-seeds {args.road_seeds} --road-large '{args.road_large}' --roof-sizes {args.roof_sizes} "

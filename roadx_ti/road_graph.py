@@ -228,10 +228,10 @@ def _keep_components(graph, road, kerb, b_upper, density, w):
     out_b = road[pb] & ~road[pa]
     boundary = np.bincount(np.concatenate([comp[pa[out_a]], comp[pb[out_b]]]),
                            weights=np.concatenate([graph.edges[out_a], graph.edges[out_b]]), minlength=nc)
-    large = area >= w.keep_area
-    if w.keep_area_kerb > 0:
-        large &= (evidence >= w.keep_area_kerb * np.maximum(boundary, 1e-9)) | (area == area.max())
-    keep = (large | (evidence >= w.keep_kerb * np.maximum(boundary, 1e-9))) & (area >= w.min_area)
+    boundary = np.maximum(boundary, 1e-9)
+    # keep_area_kerb 0: every large component (evidence >= 0)
+    large = (area >= w.keep_area) & ((evidence >= w.keep_area_kerb * boundary) | (area == area.max()))
+    keep = (large | (evidence >= w.keep_kerb * boundary)) & (area >= w.min_area)
     return road & keep[comp]
 
 
