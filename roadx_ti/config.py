@@ -64,8 +64,8 @@ class OutputConfig(_Strict):
 
 class TilingConfig(_Strict):
     enabled: bool = Field(False, description="run in tiles with buffers even for one input file")
-    tile_size: float | None = Field(None, gt=0, description="core tile edge (m); null: about 2 M points "
-                                    "per tile at the data's density; .inf: untiled")
+    tile_size: float | None = Field(None, gt=0, description="core tile edge (m); null: the largest whose "
+                                    "window fits the run's memory budget (at most 16 M points); .inf: untiled")
     buffer: float | None = Field(None, ge=0, description="buffer on every side of a tile (m); null: the "
                                  "largest spatial reach of the stages")
     auto: bool = Field(False, description="run in tiles when the run's memory estimate exceeds the memory "

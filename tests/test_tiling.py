@@ -70,6 +70,34 @@ def test_default_buffer_follows_the_stages_reach():
 
 # ------------------------------------------------------------------------------ six real tiles
 
+def test_default_tiles_are_as_large_as_the_memory_budget_allows(monkeypatch):
+    """The default core: the largest whose window (core + buffer) fits the memory a tile may use,
+    at the survey's occupied density, shared by the local workers, at most MAX_WINDOW_POINTS."""
+    from roadx_ti import memory
+    from roadx_ti.tiling.run import memory_tile_size
+
+    files = [tiling.CatalogFile("a.laz", (0.0, 0.0, 5000.0, 5000.0), 200_000_000)]   # header box: 8 /m2
+    survey, buffer = {"density_per_m2": 100.0}, 30.0
+
+    def size(limit, workers=None, scheduler=None):
+        monkeypatch.setenv(memory.LIMIT_VARIABLE, limit)
+        return memory_tile_size("road", files, survey, buffer, workers, scheduler)
+
+    def window_points(edge):
+        return (edge + 2 * buffer) ** 2 * survey["density_per_m2"]
+
+    small, shared, one, capped = size("3G"), size("6G", workers=2), size("6G"), size("64G")
+    assert small == shared < one < capped
+    for edge, limit in ((small, "3G"), (one, "6G")):     # the window fits, 10 m more would not
+        budget = memory.parse_size(limit)
+        assert memory.estimate("road", window_points(edge)) * memory.SAFETY <= budget
+        assert memory.estimate("road", window_points(edge + tiling.TILE_SIZE_STEP)) * memory.SAFETY > budget
+    assert window_points(capped) <= tiling.MAX_WINDOW_POINTS < window_points(capped + tiling.TILE_SIZE_STEP)
+    assert size("100M") ** 2 * 100.0 >= tiling.TARGET_TILE_POINTS      # never below a 2 M-point core
+    # an existing cluster's workers: cores of about 2 M points at the header boxes' density
+    assert size("64G", scheduler="tcp://host:8786") == tiling.default_tile_size(files)
+
+
 @pytest.fixture(scope="module")
 def six_runs(shared_data, tmp_path_factory):
     """Untiled and 40 m tiled ground runs over the six adjacent IGN tiles (a folder input); the
@@ -208,6 +236,54 @@ def test_segments_cut_by_tile_borders_keep_one_id(shared_data, tmp_path):
     assert np.array_equal(ids, np.arange(len(ids)))        # compact global ids
     assert len(ids) == tiled["segments"]["segments"]
     assert untiled["segments"]["merges"] == 0
+
+
+# ------------------------------------------------------------------------ decode once (split)
+
+def test_split_parts_read_back_as_the_windowed_read(shared_data):
+    """Each file is decoded once for all tiles: a window's records read back give the Cloud a
+    windowed read gives, field for field (overlapping windows, one meeting no point)."""
+    path = tile_files(shared_data)[0]
+    x0, y0, x1, y1 = io.read_headers([path])[0][1]
+    xm, ym = (x0 + x1) / 2, (y0 + y1) / 2
+    windows = [(0, (x0 - 5, y0 - 5, xm + 3, ym + 3)), (1, (xm - 3, y0, x1 + 1, y1 + 1)),
+               (2, (x1 + 10, y1 + 10, x1 + 20, y1 + 20))]
+    got = {}
+    io.split(path, windows, lambda key, rec: got.setdefault(key, []).append(rec.copy()))
+    assert set(got) == {0, 1}
+    origin = np.floor(np.array([x0, y0, 0.0]))
+    for key, box in windows[:2]:
+        want = io.read(path, bounds=box, origin=origin)
+        part = io.read_part(path, np.concatenate(got[key]), origin)
+        assert part.n == want.n > 0
+        for name in ("xyz", "origin", "rgb", "intensity", "classification", "returns", "nir"):
+            a, b = getattr(part, name), getattr(want, name)
+            assert (a is None and b is None) or np.array_equal(a, b), name
+        assert part.color_depth == want.color_depth
+        assert np.array_equal(part.las.points.array, want.las.points.array)
+
+
+def test_tiled_run_decodes_each_file_once_with_the_same_labels(shared_data, six_runs, tmp_path, monkeypatch):
+    """The 40 m tiled run split its six files (each read by several tiles) and gives the labels
+    of tiles that decode their files themselves; the scratch folder is gone after the run."""
+    out, _, tiled = six_runs
+    assert tiled["split"]["files"] == 6 and tiled["split"]["parts"] > 6 and tiled["split"]["bytes"] > 0
+    assert not list(out.glob(tiling.split.FOLDER_PREFIX + "*"))
+    decoded = []
+    real = io.read
+
+    def counting_read(path, **kw):
+        decoded.append(path)
+        return real(path, **kw)
+
+    monkeypatch.setattr(tiling.run, "split_catalog", lambda *a, **k: tiling.split.Split(folder=None))
+    monkeypatch.setattr(io, "read", counting_read)
+    direct = tiling.run_catalog(ground_cfg(), [shared_data / "tiles"], tmp_path / "direct.laz", tile_size=40.0,
+                                progress=False)
+    assert direct["split"]["files"] == 0 and len(decoded) > 6     # each tile decoded its files
+    a, b = laspy.read(out / "tiled.laz"), laspy.read(tmp_path / "direct.laz")
+    assert np.array_equal(a.points.array, b.points.array)
+    assert np.array_equal(a.segment_id, b.segment_id)
 
 
 # ---------------------------------------------------------------------------- synthetic scene

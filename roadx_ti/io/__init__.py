@@ -6,6 +6,7 @@
                       extra_dims={"roadx_label": lab_u8, "segment_id": seg_i32})
     roadx_ti.io.info("tile.laz")   -> dict (count, bounds, format, dimensions, colour, classes, CRS)
     roadx_ti.io.read_headers(paths) -> [(path, (xmin, ymin, xmax, ymax), point_count, (zmin, zmax)), ...]
+    roadx_ti.io.split("big.laz", [(key, box), ..], write)      # decode once, records per window
 
 The format follows the extension. Problems with the user's files raise ``InputError`` (a
 ValueError) with one line 'PATH: problem'. Outputs are written atomically and never over an input
@@ -25,7 +26,7 @@ from . import other as _other
 from .atomic import InputError, atomic_output, check_output_path, fail
 
 __all__ = ["InputError", "read", "write", "info", "read_headers", "iter_xy", "check_output_path",
-           "atomic_output", "EXTENSIONS"]
+           "atomic_output", "split", "read_part", "record_dtype", "EXTENSIONS"]
 
 EXTENSIONS = {".las": "las", ".laz": "las", ".ply": "ply", ".pcd": "pcd", ".npz": "npz",
               ".xyz": "text", ".txt": "text", ".csv": "text"}
@@ -74,6 +75,31 @@ def read(path, *, bounds=None, origin=None) -> Cloud:
             inside = ((world[:, 0] >= bounds[0]) & (world[:, 0] < bounds[2])
                       & (world[:, 1] >= bounds[1]) & (world[:, 1] < bounds[3]))
             cloud = cloud.subset(inside)
+    return _checked(path, cloud)
+
+
+def split(path, windows, write) -> None:
+    """Decode a LAS/LAZ file once and hand each of ``windows`` [(key, (xmin, ymin, xmax, ymax)), ..]
+    its raw point records chunk by chunk: ``write(key, records)`` (las.split_las). With
+    ``read_part`` of a key's records concatenated, a tiled run decodes each file once, not once
+    per tile that touches it."""
+    path = Path(path)
+    _check_input(path)
+    if _kind(path) != "las":
+        raise ValueError(f"{path}: only LAS/LAZ files are split")
+    _las.split_las(path, windows, write)
+
+
+def read_part(path, records, origin) -> Cloud:
+    """The Cloud of one window's records from ``split`` (same as ``read(path, bounds=window, origin=origin)``)."""
+    path = Path(path)
+    return _checked(path, _las.read_las_part(path, records, origin))
+
+
+record_dtype = _las.record_dtype
+
+
+def _checked(path: Path, cloud: Cloud) -> Cloud:
     if not np.all(np.isfinite(cloud.origin)):
         raise fail(path, f"local origin {cloud.origin.tolist()} is not finite")
     bad = int(np.count_nonzero(~np.isfinite(cloud.xyz).all(axis=1))) if cloud.n else 0

@@ -31,6 +31,7 @@ log = logging.getLogger(__name__)
 
 MAX_POINTS = 2**31 - 1      # arrays and kernel indices are 32-bit
 CHUNK_POINTS = 1_000_000    # points per chunk for windowed reads and info
+SPLIT_CHUNK_POINTS = 4_000_000   # per chunk of split_las: lazrs decodes a chunk's parts in parallel
 # a LAZ file whose header claims more record bytes than this many times its size is read in
 # chunks, so that memory follows the points it really holds (LAZ compresses point records 3-11x)
 PLAUSIBLE_LAZ_RATIO = 64
@@ -264,10 +265,73 @@ def read_las(path, bounds=None, origin=None) -> Cloud:
         raise
     except LAS_ERRORS as exc:
         raise _las_error(path, exc) from exc
+    return _cloud_of(path, las, hmins, hmaxs, origin, whole=bounds is None)
+
+
+def split_las(path, windows, write) -> None:
+    """Decode a LAS/LAZ file once and hand each window its points: ``windows`` is a list of
+    (key, (xmin, ymin, xmax, ymax)) half-open boxes, ``write(key, records)`` receives, chunk by
+    chunk in file order, the raw point records (the file's point-format dtype) inside that box.
+    Concatenated, a key's records are exactly the ones ``read_las(path, bounds)`` keeps, so that
+    ``read_las_part`` of them gives the same Cloud; a window that meets no chunk gets no call."""
+    try:
+        check_structure(path)
+        with laspy.open(path) as reader:
+            header = reader.header
+            _check_header(path, header)
+            seen = 0
+            for chunk in reader.chunk_iterator(SPLIT_CHUNK_POINTS):
+                seen += len(chunk)
+                x, y = np.asarray(chunk.x), np.asarray(chunk.y)
+                if not len(x):
+                    continue
+                lo_x, hi_x, lo_y, hi_y = x.min(), x.max(), y.min(), y.max()
+                for key, (xmin, ymin, xmax, ymax) in windows:
+                    if hi_x < xmin or lo_x >= xmax or hi_y < ymin or lo_y >= ymax:
+                        continue
+                    inside = np.flatnonzero((x >= xmin) & (x < xmax) & (y >= ymin) & (y < ymax))
+                    if len(inside):
+                        write(key, chunk.array[inside])
+            if seen != header.point_count:
+                raise fail(path, f"truncated LAS/LAZ file: {seen} of {header.point_count} points could be read")
+    except InputError:
+        raise
+    except LAS_ERRORS as exc:
+        raise _las_error(path, exc) from exc
+
+
+def record_dtype(path) -> np.dtype:
+    """The numpy dtype of a LAS/LAZ file's point records (what split_las hands out)."""
+    try:
+        with laspy.open(path) as reader:
+            return reader.header.point_format.dtype()
+    except LAS_ERRORS as exc:
+        raise _las_error(path, exc) from exc
+
+
+def read_las_part(path, records: np.ndarray, origin) -> Cloud:
+    """The Cloud of a window's point records as split_las handed them out (``origin``: the shared
+    local origin of the windows): the same Cloud read_las(path, bounds, origin) gives."""
+    try:
+        with laspy.open(path) as reader:
+            header = reader.header
+            hmins, hmaxs = np.array(header.mins, np.float64), np.array(header.maxs, np.float64)
+            if len(records) > MAX_POINTS:
+                raise _too_many(path, len(records))
+            points = laspy.ScaleAwarePointRecord(records, header.point_format, header.scales, header.offsets)
+            las = laspy.LasData(copy.deepcopy(header), points)
+    except InputError:
+        raise
+    except LAS_ERRORS as exc:
+        raise _las_error(path, exc) from exc
+    return _cloud_of(path, las, hmins, hmaxs, origin, whole=False)
+
+
+def _cloud_of(path, las, hmins, hmaxs, origin, whole: bool) -> Cloud:
     world = _world_xyz(las.points)
     _check_magnitude(path, world, las.header.scales)
     if origin is None:
-        origin = _local_origin(hmins, hmaxs, las.header.scales, world, whole=bounds is None)
+        origin = _local_origin(hmins, hmaxs, las.header.scales, world, whole=whole)
     origin = np.asarray(origin, dtype=np.float64).reshape(3)
     rgb, depth = _las_rgb(las)
     return Cloud(xyz=(world - origin).astype(np.float32), origin=origin, rgb=rgb, color_depth=depth,

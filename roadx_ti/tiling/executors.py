@@ -21,14 +21,15 @@ def backend_ready() -> bool:
 
 
 def make_jobs(plan: TilePlan, files: list[CatalogFile], stage_specs, *, backend: str,
-              threads: int | None, seed: int, survey_estimates: dict | None = None) -> list[TileJob]:
+              threads: int | None, seed: int, survey_estimates: dict | None = None, split=None) -> list[TileJob]:
     survey_z_min = min((f.z_range[0] for f in files if f.count), default=math.inf)
     return [TileJob(tile=t, paths={k: os.path.abspath(files[k].path) for k in t.files}, grid=plan.grid,
                     neighbour_cells={u: (plan.tiles[u].col, plan.tiles[u].row) for u in t.neighbours},
                     windows={u: plan.tiles[u].window for u in t.neighbours}, read_origin=plan.read_origin,
                     stage_specs=list(stage_specs), backend=backend, threads=threads, seed=seed,
                     survey_z_min=survey_z_min, survey_points=sum(f.count for f in files),
-                    survey_estimates=survey_estimates)
+                    survey_estimates=survey_estimates,
+                    parts=split.for_tile(t.index, t.files) if split is not None else {})
             for t in plan.tiles]
 
 

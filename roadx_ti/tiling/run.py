@@ -14,8 +14,10 @@ from roadx_ti.tiling.catalogs import catalog
 from roadx_ti.tiling.cluster import _DaskSession
 from roadx_ti.tiling.executors import backend_ready, make_jobs, run_in_process, run_on_dask
 from roadx_ti.tiling.merge import reconcile_segments, write_outputs
-from roadx_ti.tiling.plan import Tile, default_tile_size, plan_tiles, scan_cells
+from roadx_ti.tiling.plan import (MAX_WINDOW_POINTS, Tile, budget_tile_size, catalog_origin, default_tile_size,
+                                  plan_tiles, scan_cells)
 from roadx_ti.tiling.reach import default_buffer
+from roadx_ti.tiling.split import Split, split_catalog
 from roadx_ti.tiling.tile import TileResult
 
 log_default = logging.getLogger("roadx_ti")
@@ -48,19 +50,38 @@ class _Progress:
             self.bar.close()
 
 
+def memory_tile_size(pipeline: str, files, survey: dict, buffer: float, workers, scheduler) -> float:
+    """The default core tile edge (m): the largest whose window fits the memory each tile may use
+    (the run's budget, roadx_ti.memory, shared by the local workers; at most MAX_WINDOW_POINTS),
+    at the survey's density over its occupied area (header boxes stretched by strays would
+    underrate it). An existing cluster's workers have memory this process cannot see: cores of
+    about TARGET_TILE_POINTS there."""
+    from roadx_ti import memory
+
+    if scheduler:
+        return default_tile_size(files)
+    share = memory.run_budget() / max(1, int(workers or 1))
+    window = min(MAX_WINDOW_POINTS, memory.points_that_fit(pipeline, int(share)))
+    density = survey.get("density_per_m2") or 0.0
+    if not density > 0:
+        return default_tile_size(files)
+    return budget_tile_size(density, buffer, window)
+
+
 def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, scheduler: str | None = None,
                 tile_size: float | None = None, buffer: float | None = None, output_mode: str = "merged",
-                progress: bool = True, log=None, summary_path=None) -> dict:
+                progress: bool = True, log=None, summary_path=None, split_dir=None) -> dict:
     """Run ``cfg``'s pipeline over a catalog of files in tiles with buffers and write the result.
 
     input_paths: files and/or folders (catalog order = input order). output_path: the merged
     LAS/LAZ (output_mode 'merged'), or a folder receiving one file per input under the input's
     name ('per-file'). workers: start a local Dask cluster of that many processes; scheduler:
     'tcp://HOST:PORT' of an existing one; neither: tiles run one by one in this process.
-    tile_size (m): core tile edge (None: about TARGET_TILE_POINTS points per tile; inf: untiled);
+    tile_size (m): core tile edge (None: as large as memory allows, memory_tile_size; inf: untiled);
     buffer (m): None derives it from the stages' reach (stage_reach). The summary (returned and
     written to summary_path, default '<output stem>.summary.json' or '<folder>/summary.json')
-    holds the plan, per-tile timings and counts. Raises TileError (nothing written) when a tile
+    holds the plan, per-tile timings and counts. split_dir: where the inputs' per-tile records go
+    for the run (split.py; default beside the output). Raises TileError (nothing written) when a tile
     fails after its retries."""
     from roadx_ti import __version__, io, jsonio
     from roadx_ti.config import PIPELINE_TARGET
@@ -80,12 +101,14 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     stage_specs = cfg.pipeline_stages()
     auto_buffer, reaches = default_buffer(stage_specs)
     buffer = auto_buffer if buffer is None else float(buffer)
-    tile_size = default_tile_size(files) if tile_size is None else float(tile_size)
-    plan = plan_tiles(files, tile_size, buffer, scan=scan_cells)
-    if len(plan.tiles) > max(64, total_points // MIN_POINTS_PER_TILE):
-        raise ValueError(f"--tile-size {tile_size:g} gives {len(plan.tiles):,} tiles for {total_points:,} points, "
-                         f"fewer than {MIN_POINTS_PER_TILE} per tile (each tile reads its files): use a larger "
-                         f"tile size, e.g. {default_tile_size(files):g} m")
+    plan = None
+    if tile_size is not None:      # checked before the estimates' pass over the files
+        tile_size = float(tile_size)
+        plan = plan_tiles(files, tile_size, buffer, scan=scan_cells)
+        if len(plan.tiles) > max(64, total_points // MIN_POINTS_PER_TILE):
+            raise ValueError(f"--tile-size {tile_size:g} gives {len(plan.tiles):,} tiles for {total_points:,} points, "
+                             f"fewer than {MIN_POINTS_PER_TILE} per tile (each tile reads its files): use a larger "
+                             f"tile size, e.g. {default_tile_size(files):g} m")
 
     inputs = [f.path for f in files]
     if output_mode == "merged":
@@ -93,6 +116,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
         out.parent.mkdir(parents=True, exist_ok=True)
         io.check_output_path(out, inputs)
         outputs = [(out, list(range(len(files))))]
+        scratch = out.parent
         summary_path = Path(summary_path or out.with_suffix("").as_posix() + ".summary.json")
     else:
         folder = Path(output_path)
@@ -104,8 +128,22 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
         outputs = [(folder / name, [k]) for k, name in enumerate(names)]
         for o, _ in outputs:
             io.check_output_path(o, inputs)
+        scratch = folder
         summary_path = Path(summary_path or folder / "summary.json")
 
+    from roadx_ti.estimates import measure_catalog
+
+    t_est = time.perf_counter()
+    if not backend_ready():
+        from roadx_ti import backend
+        backend.init(cfg.backend, threads=cfg.threads)
+    survey = measure_catalog(files, catalog_origin(files))
+    estimate_s = time.perf_counter() - t_est
+    log.info("survey estimates (%d sampled points) in %.2f s: %s", survey.get("sample_points", 0), estimate_s,
+             {k: v for k, v in survey.items() if k not in ("sample_points",)})
+    if plan is None:
+        tile_size = memory_tile_size(cfg.pipeline, files, survey, buffer, workers, scheduler)
+        plan = plan_tiles(files, tile_size, buffer, scan=scan_cells)
     log.info("%d file(s), %d points; %d tile(s) of %s m with a %.1f m buffer", len(files), total_points,
              len(plan.tiles), "all" if not np.isfinite(plan.tile_size) else f"{plan.tile_size:g}", plan.buffer)
     results: dict[int, TileResult] = {}
@@ -114,24 +152,16 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     def on_done(result: TileResult):
         results[result.index] = result
         bar.step(plan.tiles[result.index], result)
-
-    from roadx_ti.estimates import measure_catalog
-
-    t_est = time.perf_counter()
-    if not backend_ready():
-        from roadx_ti import backend
-        backend.init(cfg.backend, threads=cfg.threads)
-    survey = measure_catalog(files, plan.read_origin)
-    estimate_s = time.perf_counter() - t_est
-    log.info("survey estimates (%d sampled points) in %.2f s: %s", survey.get("sample_points", 0), estimate_s,
-             {k: v for k, v in survey.items() if k not in ("sample_points",)})
+    # each file several tiles read is decoded once, here; not for an existing cluster, whose
+    # workers may not see this machine's disk
+    split = split_catalog(plan, files, split_dir or scratch, log=log) if not scheduler else Split(folder=None)
     t_tiles = time.perf_counter()
     session = None
     try:
         if workers is None and not scheduler:
             executor, n_workers = "in-process", 1
             jobs = make_jobs(plan, files, stage_specs, backend=cfg.backend, threads=cfg.threads, seed=cfg.seed,
-                             survey_estimates=survey)
+                             survey_estimates=survey, split=split)
             run_in_process(jobs, on_done)
         else:
             session = _DaskSession(workers, scheduler, log, inputs=[os.path.abspath(f.path) for f in files],
@@ -141,10 +171,11 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
             # one Taichi runtime per worker process; CPU unless the config names a backend
             threads = cfg.threads or (max(1, (os.cpu_count() or 1) // int(workers)) if workers else None)
             jobs = make_jobs(plan, files, stage_specs, backend="cpu" if cfg.backend == "auto" else cfg.backend,
-                             threads=threads, seed=cfg.seed, survey_estimates=survey)
+                             threads=threads, seed=cfg.seed, survey_estimates=survey, split=split)
             run_on_dask(session.client, jobs, on_done, in_flight=2 * n_workers)
     finally:
         bar.close()
+        split.remove()
         if session is not None:
             session.close()
     tiles_s = time.perf_counter() - t_tiles
@@ -163,10 +194,11 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
         "outputs": [str(o) for o, _ in outputs], "points": total_points, "points_written": written,
         "tiling": plan.describe() | {"buffer_from_stages": reaches},
         "estimates": survey,
+        "split": split.describe(),
         "segments": segments,
         "target_class": target, "target_points": int(merge.class_counts[target]),
         "class_counts": {str(c): int(v) for c, v in enumerate(merge.class_counts) if v},
-        "seconds": {"estimates": round(estimate_s, 4), "tiles": round(tiles_s, 4), "merge": round(merge_s, 4),
+        "seconds": {"estimates": round(estimate_s, 4), "split": round(split.seconds, 4), "tiles": round(tiles_s, 4), "merge": round(merge_s, 4),
                     "total": round(time.perf_counter() - t_start, 4),
                     "tile_sum": round(sum(r.seconds for r in results.values()), 4)},
         "tiles": [{"tile": [t.col, t.row], "core": list(t.core), "window": list(t.window),

@@ -14,6 +14,7 @@ import numpy as np
 from roadx_ti.cloud import Cloud
 from roadx_ti.stages.base import ESTIMATES, SURVEY_POINTS, SURVEY_Z_MIN
 from roadx_ti.tiling.plan import CoreGrid, Tile
+from roadx_ti.tiling.split import read_part
 
 
 @dataclass
@@ -32,6 +33,7 @@ class TileJob:
     survey_z_min: float = math.inf   # world: the lowest header z of the catalog (cloth start)
     survey_points: int = 0           # points of the catalog (a tile of a stray point sees it isolated)
     survey_estimates: dict | None = None   # roadx_ti.estimates of the whole catalog, for 'auto' options
+    parts: dict = field(default_factory=dict)  # catalog index -> split.Part (None: no points here) of split files
 
 
 @dataclass
@@ -115,7 +117,12 @@ def run_tile(job: TileJob) -> TileResult:
     tile = job.tile
     pieces, xs, ys, owners = [], [], [], []
     for k in tile.files:
-        piece = io.read(job.paths[k], bounds=tile.window, origin=job.read_origin)
+        if k in job.parts:      # decoded once for all tiles (split.py)
+            if job.parts[k] is None:
+                continue
+            piece = read_part(job.paths[k], job.parts[k], job.read_origin)
+        else:
+            piece = io.read(job.paths[k], bounds=tile.window, origin=job.read_origin)
         if piece.n:
             x, y = _world_xy(piece)
             piece.las = None           # the record is not needed for processing; free it
