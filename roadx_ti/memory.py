@@ -31,6 +31,11 @@ LIMIT_VARIABLE = "ROADX_TI_MEMORY_LIMIT"
 
 BYTES_PER_POINT = {"road": 340, "roof": 230, "ground": 160}
 BASE_BYTES = 200 * 2**20          # peak RSS of a run over a few points (Python, Taichi, numpy, laspy)
+# a tile of a tiled run peaks higher per point of its window than a whole-file run per point:
+# the 137 M-point road survey (benchmarks/paper_scale, 8 GB limit) peaked at 10.8 GB on its
+# largest window of 20.2 M points, about 535 B/pt against 324 untiled; default tiles are sized
+# with this factor (the tile's records and world x/y, the labels of the tiles done so far)
+TILE_OVERHEAD = 1.7
 SAFETY = 1.25                     # the estimate is raised by this factor before it is compared
 
 CELLS_PER_POINT = 64              # a dense structure may hold this many cells per point ...

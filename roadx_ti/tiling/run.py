@@ -52,17 +52,20 @@ class _Progress:
 
 def memory_tile_size(pipeline: str, files, survey: dict, buffer: float, workers, scheduler) -> float:
     """The default core tile edge (m): the largest whose window fits the memory each tile may use
-    (the run's budget, roadx_ti.memory, shared by the local workers; at most MAX_WINDOW_POINTS),
-    at the survey's density over its occupied area (header boxes stretched by strays would
-    underrate it). An existing cluster's workers have memory this process cannot see: cores of
-    about TARGET_TILE_POINTS there."""
+    (the run's budget, roadx_ti.memory with its TILE_OVERHEAD, shared by the local workers; at most
+    MAX_WINDOW_POINTS) where the survey is densest: the larger of its density over its occupied
+    area and the densest file's over its header box (a box stretched by strays only underrates
+    it; a survey of dense and sparse files must not size tiles by the mean). An existing cluster's
+    workers have memory this process cannot see: cores of about TARGET_TILE_POINTS there."""
     from roadx_ti import memory
 
     if scheduler:
         return default_tile_size(files)
     share = memory.run_budget() / max(1, int(workers or 1))
-    window = min(MAX_WINDOW_POINTS, memory.points_that_fit(pipeline, int(share)))
-    density = survey.get("density_per_m2") or 0.0
+    window = min(MAX_WINDOW_POINTS, int(memory.points_that_fit(pipeline, int(share)) / memory.TILE_OVERHEAD))
+    boxes = [f.count / ((f.bounds[2] - f.bounds[0]) * (f.bounds[3] - f.bounds[1])) for f in files
+             if f.count and f.bounds[2] > f.bounds[0] and f.bounds[3] > f.bounds[1]]
+    density = max([survey.get("density_per_m2") or 0.0] + boxes)
     if not density > 0:
         return default_tile_size(files)
     return budget_tile_size(density, buffer, window)
