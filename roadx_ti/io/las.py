@@ -206,15 +206,8 @@ def _read_window(path, reader, bounds) -> laspy.ScaleAwarePointRecord:
     if not disjoint and is_copc(header):
         kept.append(_read_copc_window(path, header, (xmin, ymin, xmax, ymax)))
     elif not disjoint:
-        seen = 0
-        for chunk in reader.chunk_iterator(CHUNK_POINTS):
-            seen += len(chunk)
-            x, y = np.asarray(chunk.x), np.asarray(chunk.y)
-            inside = (x >= xmin) & (x < xmax) & (y >= ymin) & (y < ymax)
-            if inside.any():
-                kept.append(chunk.array[inside])
-        if seen != header.point_count:
-            raise fail(path, f"truncated LAS/LAZ file: {seen} of {header.point_count} points could be read")
+        _split_chunks(path, reader, [(0, (xmin, ymin, xmax, ymax))], lambda _, records: kept.append(records),
+                      CHUNK_POINTS)
     array = np.concatenate(kept) if kept else np.zeros(0, dtype=header.point_format.dtype())
     if len(array) > MAX_POINTS:
         raise _too_many(path, len(array))
@@ -277,27 +270,32 @@ def split_las(path, windows, write) -> None:
     try:
         check_structure(path)
         with laspy.open(path) as reader:
-            header = reader.header
-            _check_header(path, header)
-            seen = 0
-            for chunk in reader.chunk_iterator(SPLIT_CHUNK_POINTS):
-                seen += len(chunk)
-                x, y = np.asarray(chunk.x), np.asarray(chunk.y)
-                if not len(x):
-                    continue
-                lo_x, hi_x, lo_y, hi_y = x.min(), x.max(), y.min(), y.max()
-                for key, (xmin, ymin, xmax, ymax) in windows:
-                    if hi_x < xmin or lo_x >= xmax or hi_y < ymin or lo_y >= ymax:
-                        continue
-                    inside = np.flatnonzero((x >= xmin) & (x < xmax) & (y >= ymin) & (y < ymax))
-                    if len(inside):
-                        write(key, chunk.array[inside])
-            if seen != header.point_count:
-                raise fail(path, f"truncated LAS/LAZ file: {seen} of {header.point_count} points could be read")
+            _check_header(path, reader.header)
+            _split_chunks(path, reader, windows, write, SPLIT_CHUNK_POINTS)
     except InputError:
         raise
     except LAS_ERRORS as exc:
         raise _las_error(path, exc) from exc
+
+
+def _split_chunks(path, reader, windows, write, chunk_points: int) -> None:
+    """The chunk loop of windowed reads and split_las: each window's records, chunk by chunk in
+    file order, to ``write(key, records)``; a truncated file is an InputError."""
+    seen = 0
+    for chunk in reader.chunk_iterator(chunk_points):
+        seen += len(chunk)
+        x, y = np.asarray(chunk.x), np.asarray(chunk.y)
+        if not len(x):
+            continue
+        lo_x, hi_x, lo_y, hi_y = x.min(), x.max(), y.min(), y.max()
+        for key, (xmin, ymin, xmax, ymax) in windows:
+            if hi_x < xmin or lo_x >= xmax or hi_y < ymin or lo_y >= ymax:
+                continue
+            inside = np.flatnonzero((x >= xmin) & (x < xmax) & (y >= ymin) & (y < ymax))
+            if len(inside):
+                write(key, chunk.array[inside])
+    if seen != reader.header.point_count:
+        raise fail(path, f"truncated LAS/LAZ file: {seen} of {reader.header.point_count} points could be read")
 
 
 def record_dtype(path) -> np.dtype:

@@ -14,11 +14,15 @@ MAX_WINDOW_POINTS = 16_000_000   # default tiles: a window (core and buffer) of 
 TILE_SIZE_STEP = 10.0            # default tile sizes are rounded to a multiple of this (m)
 
 
+def _core_edge(points: float, density: float) -> float:
+    """Edge (m) of a square holding about ``points`` at ``density``, rounded up to TILE_SIZE_STEP."""
+    return TILE_SIZE_STEP * math.ceil(math.sqrt(points / max(density, 1e-6)) / TILE_SIZE_STEP)
+
+
 def default_tile_size(files: list[CatalogFile], target_points: int = TARGET_TILE_POINTS) -> float:
     """Edge (m) of a square core holding about ``target_points`` at the catalog's mean density."""
     area = sum(max(f.bounds[2] - f.bounds[0], 1.0) * max(f.bounds[3] - f.bounds[1], 1.0) for f in files)
-    density = max(sum(f.count for f in files) / area, 1e-6)
-    return TILE_SIZE_STEP * math.ceil(math.sqrt(target_points / density) / TILE_SIZE_STEP)
+    return _core_edge(target_points, sum(f.count for f in files) / area)
 
 
 def budget_tile_size(density: float, buffer: float, window_points: int) -> float:
@@ -30,8 +34,7 @@ def budget_tile_size(density: float, buffer: float, window_points: int) -> float
     density = max(float(density), 1e-6)
     edge = math.sqrt(max(window_points, 1) / density) - 2.0 * buffer
     edge = TILE_SIZE_STEP * math.floor(edge / TILE_SIZE_STEP)
-    smallest = TILE_SIZE_STEP * math.ceil(math.sqrt(TARGET_TILE_POINTS / density) / TILE_SIZE_STEP)
-    return float(max(edge, smallest))
+    return float(max(edge, _core_edge(TARGET_TILE_POINTS, density)))
 
 
 def catalog_origin(files: list[CatalogFile]) -> np.ndarray:

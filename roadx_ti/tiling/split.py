@@ -12,6 +12,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from roadx_ti.tiling.catalogs import LAS_SUFFIXES, CatalogFile
 from roadx_ti.tiling.plan import TilePlan
 
@@ -123,8 +125,6 @@ def split_catalog(plan: TilePlan, files: list[CatalogFile], where, *, log=None) 
 
 def read_part(path: str, part: Part, origin):
     """The Cloud of one tile's part of a split file (as io.read(path, bounds=window, origin))."""
-    import numpy as np
-
     from roadx_ti import io
 
     return io.read_part(path, np.fromfile(part.path, dtype=part.dtype), origin)
