@@ -199,7 +199,7 @@ def _reach_sq(best: ti.template(), size: ti.i32, k: ti.i32, bound_sq: ti.f32, in
 @ti.func
 def _emit_best(best: ti.template(), size: ti.i32, k: ti.i32, qi: ti.i32,
                self_slots: ti.i32, out_idx: ti.template(), out_dist: ti.template(),
-               out_mean: ti.template(), emit_rows: ti.template()):
+               out_mean: ti.template(), emit_rows: ti.i32):
     """Write the row (ascending (distance, index)) or its mean (summed in that canonical order,
     so every scan order gives the same bits)."""
     # the list is ordered by (squared distance, index); distances are their float32 square
@@ -213,12 +213,12 @@ def _emit_best(best: ti.template(), size: ti.i32, k: ti.i32, qi: ti.i32,
     dist_sum = 0.0
     for r in range(k):
         dist = ti.bit_cast(_key_of(best[r]), ti.f32)
-        if ti.static(emit_rows):
+        if emit_rows != 0:
             out_idx[qi, r] = _idx_of(best[r])
             out_dist[qi, r] = dist
         else:
             dist_sum += dist
-    if ti.static(not emit_rows):
+    if emit_rows == 0:
         out_mean[qi] = dist_sum / ti.cast(k + self_slots, ti.f32)
 
 
@@ -265,7 +265,7 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
                mask: ti.i32, ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32, inv_cell: ti.f32,
                k: ti.i32, self_slots: ti.i32, pending: ti.types.ndarray(dtype=ti.i32, ndim=1),
                out_idx: ti.types.ndarray(dtype=ti.i32, ndim=2), out_dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
-               out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.template()):
+               out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.i32):
     """k <= SMALL_K, one occupied cell per iteration: the runs of its 27 neighbouring cells are
     looked up once, then each of its points keeps an ascending register list of the nearest
     candidates from them. A point whose k-th is not inside the cube's safe radius adds the cells of the second
@@ -398,7 +398,7 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                 mask: ti.i32, ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32, inv_cell: ti.f32,
                 k: ti.i32, brute_blocks: ti.i32, self_slots: ti.i32, block_bits: ti.i32,
                 out_idx: ti.types.ndarray(dtype=ti.i32, ndim=2), out_dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
-                out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.template()):
+                out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.i32):
     """k <= SMALL_K, one query per thread for the points at sorted positions ``queries``
     (``_block_search``). ``block_bits`` 2: blocks of 4x4x4 cells (one contiguous range of 64
     buckets, ``grid.cell_hash``): the sparse regions and outliers the cell kernel leaves on CPUs,
@@ -448,7 +448,7 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                 mask: ti.i32, ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32, inv_cell: ti.f32,
                 k: ti.i32, brute_cells: ti.i32, self_slots: ti.i32,
                 out_idx: ti.types.ndarray(dtype=ti.i32, ndim=2), out_dist: ti.types.ndarray(dtype=ti.f32, ndim=2),
-                out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.template()):
+                out_mean: ti.types.ndarray(dtype=ti.f32, ndim=1), emit_rows: ti.i32):
     """k > SMALL_K: selection of the k-th (distance, index) by counting, then one emit pass."""
     n = sxyz.shape[0]
     for s in range(n):
@@ -644,7 +644,7 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                 t_idx = buf_idx[cand]
 
         # 4. rows only: emit every candidate up to (t_key, t_idx)
-        if ti.static(emit_rows):
+        if emit_rows != 0:
             emitted = 0
             bound = ti.bit_cast(t_key, ti.f32)
             d = ti.math.ivec3(0, 0, 0)
@@ -665,7 +665,7 @@ def _knn_select(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
                                 out_idx[qi, emitted] = idx
                                 out_dist[qi, emitted] = dist
                             emitted += 1
-        if ti.static(emit_rows):
+        if emit_rows != 0:
             # heap sort of the row in place (global memory): ascending (distance, index)
             m = k
             start = m // 2 - 1
@@ -731,6 +731,9 @@ def _brute_cells(n: int) -> int:
 
 
 def _run_scan(grid: Grid, k: int, out_idx, out_dist, out_mean, emit_rows: bool, self_slots: int):
+    # rows or means: a runtime flag, not a template, so that each scan kernel compiles once per
+    # process (each template value is another kernel to transform and JIT: ~0.2 s each)
+    emit_rows = int(emit_rows)
     ox, oy, oz = grid.origin
     geometry = (grid.table_mask, ox, oy, oz, grid.cell_size, grid.inv_cell, k)
     if k > SMALL_K:

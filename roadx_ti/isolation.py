@@ -24,6 +24,8 @@ from itertools import product
 
 import numpy as np
 
+from roadx_ti.columns import column_max, column_min
+
 GAP = 100.0              # m: block edge; points of different parts are at least this far apart
 SMALL_PART = 10          # points: a part of at most this many points is isolated for the cloth
 DENSE_BLOCKS = 1 << 22   # bounding boxes of up to this many blocks use a dense occupancy array
@@ -126,8 +128,8 @@ def parts(points, gap: float = GAP) -> Parts:
     n, d = pts.shape
     if n == 0:
         return Parts(0, None, np.zeros(0, np.int64))
-    lo = pts.min(axis=0).astype(np.float64)
-    hi = pts.max(axis=0).astype(np.float64)
+    lo = column_min(pts).astype(np.float64)
+    hi = column_max(pts).astype(np.float64)
     dims = np.minimum(np.floor(hi / gap) - np.floor(lo / gap), _AXIS_MAX).astype(np.int64) + 1
     blocks = int(np.prod(dims))
     if blocks == 1:
@@ -169,11 +171,11 @@ def local_origin(world) -> np.ndarray:
     world = np.asarray(world, np.float64)
     if len(world) == 0:
         return np.zeros(world.shape[1] if world.ndim == 2 else 3)
-    lowest = world.min(axis=0)
-    if not np.all(np.isfinite(lowest)) or not np.all(np.isfinite(world.max(axis=0))):
+    lowest = column_min(world)
+    if not np.all(np.isfinite(lowest)) or not np.all(np.isfinite(column_max(world))):
         return np.floor(lowest)
     far = isolated(world, SMALL_PART)
-    return np.floor(lowest if far is None else world[~far].min(axis=0))
+    return np.floor(lowest if far is None else column_min(world[~far]))
 
 
 def corner_without_isolated(xyz, ctx=None):
@@ -182,5 +184,5 @@ def corner_without_isolated(xyz, ctx=None):
     far = isolated_in(xyz, SMALL_PART, ctx) if len(xyz) else None
     if far is None or far.all():
         return None
-    lowest = np.asarray(xyz)[~far, :2].min(axis=0)
+    lowest = column_min(np.asarray(xyz)[~far, :2])
     return float(lowest[0]), float(lowest[1])

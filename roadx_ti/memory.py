@@ -193,7 +193,9 @@ def _tile_size_for(cfg, points, target, cloud=None):
     from roadx_ti import io
 
     if cloud is not None and cloud.n:
-        lo, hi = cloud.xyz[:, :2].min(axis=0), cloud.xyz[:, :2].max(axis=0)
+        from roadx_ti.columns import column_max, column_min
+
+        lo, hi = column_min(cloud.xyz[:, :2]), column_max(cloud.xyz[:, :2])
     elif cfg.input.paths:
         try:
             bounds = io.read_headers([cfg.input.paths[0]])[0][1]

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from roadx_ti.columns import column_min
+
 BLOCK = 2.0      # m
 
 
@@ -27,7 +29,7 @@ def canonical_order(cloud) -> np.ndarray | None:
         return None
     xyz = cloud.xyz
     cell = np.floor(xyz[:, :2].astype(np.float64) / BLOCK).astype(np.int64)
-    cell -= cell.min(axis=0)
+    cell -= column_min(cell)
     block = cell[:, 0] * (int(cell[:, 1].max()) + 1) + cell[:, 1]
     x = _sortable(xyz[:, 0])
     if int(block.max()) < 2**32:
@@ -40,17 +42,37 @@ def canonical_order(cloud) -> np.ndarray | None:
         order = np.lexsort((x, block))
         tie = (block[order][1:] == block[order][:-1]) & (x[order][1:] == x[order][:-1])
     if tie.any():
-        in_tie = np.zeros(n, bool)
-        in_tie[1:] |= tie
-        in_tie[:-1] |= tie
-        group = np.cumsum(np.concatenate([[True], ~tie]))[in_tie]
-        members = order[in_tie]
-        keys = [a[members] for a in _attribute_keys(cloud)]
-        keys += [_sortable(xyz[members, 2]), _sortable(xyz[members, 1]), group]
-        order[in_tie] = members[np.lexsort(keys)]
+        # equal (block, x), common with quantised coordinates: by y and z in one 64-bit key; only
+        # points equal in all three are sorted by their attributes (the same order as sorting the
+        # first ties by y, z and the attributes at once: each sort is stable)
+        members, group = _tie_groups(order, tie)
+        yz = (_sortable(xyz[members, 1]).astype(np.uint64) << np.uint64(32)) | _sortable(xyz[members, 2]).astype(np.uint64)
+        by_yz = np.lexsort((yz, group))
+        members, group, yz = members[by_yz], group[by_yz], yz[by_yz]
+        order[_tie_mask(tie)] = members
+        same = (group[1:] == group[:-1]) & (yz[1:] == yz[:-1])
+        if same.any():
+            at = np.flatnonzero(_tie_mask(tie))
+            rest, rest_group = _tie_groups(members, same)
+            keys = [a[rest] for a in _attribute_keys(cloud)] + [rest_group]
+            order[at[_tie_mask(same)]] = rest[np.lexsort(keys)]
     if (order == np.arange(n)).all():
         return None
     return order
+
+
+def _tie_mask(tie: np.ndarray) -> np.ndarray:
+    """Per sorted position: equal to its predecessor or successor (``tie``: position i + 1 equals i)."""
+    mask = np.zeros(len(tie) + 1, bool)
+    mask[1:] |= tie
+    mask[:-1] |= tie
+    return mask
+
+
+def _tie_groups(order: np.ndarray, tie: np.ndarray):
+    """The members of the tied runs of ``order`` and, per member, its run's number (increasing)."""
+    mask = _tie_mask(tie)
+    return order[mask], np.cumsum(np.concatenate([[True], ~tie]))[mask]
 
 
 def _attribute_keys(cloud):

@@ -33,6 +33,23 @@ def test_any_permutation_gives_the_same_sequence_ties_included():
     assert canonical_order(first) is None                            # canonical stays canonical
 
 
+def test_order_is_one_sort_by_block_x_y_z_and_attributes():
+    # coordinates on a 1 cm lattice: many points share x, some x and y, a few all three
+    rng = np.random.default_rng(3)
+    n = 20000
+    xyz = (np.round(rng.random((n, 3)) * [8, 8, 0.05], 2)).astype(np.float32)
+    xyz[500:900] = xyz[:400]
+    intensity = rng.integers(0, 3, n).astype(np.uint16)
+    cloud = Cloud(xyz=xyz, origin=np.zeros(3), intensity=intensity)
+    from roadx_ti.ordering import BLOCK, _sortable
+
+    cell = np.floor(xyz[:, :2].astype(np.float64) / BLOCK).astype(np.int64)
+    block = cell[:, 0] * (int(cell[:, 1].max()) + 1) + cell[:, 1]
+    # the definition (module docstring): block, x, y, z, then attributes, then input order
+    expected = np.lexsort((intensity, _sortable(xyz[:, 2]), _sortable(xyz[:, 1]), _sortable(xyz[:, 0]), block))
+    np.testing.assert_array_equal(canonical_order(cloud), expected)
+
+
 def test_road_and_roof_labels_do_not_depend_on_the_point_order():
     for kind, cfg_name, points in (("uav-road", "road_uav.yaml", 60_000), ("als-roof", "roof_als.yaml", 60_000)):
         scene = synthetic.generate(kind, points, seed=1)

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..chunks import over_chunks
 from ..cloud import Cloud, detect_color_depth
+from ..columns import column_abs_nanmax, column_max, column_min
 from .atomic import InputError, fail
 
 try:
@@ -135,7 +136,7 @@ def _check_magnitude(path, world: np.ndarray, scales) -> None:
     if not len(world):
         return
     with np.errstate(invalid="ignore"):
-        reach = np.nanmax(np.abs(world), axis=0)
+        reach = column_abs_nanmax(world)
     limit = np.maximum(np.abs(np.asarray(scales, np.float64)), 1e-3) * 2.0**52
     bad = np.flatnonzero(np.isfinite(reach) & (reach > limit))
     if len(bad):
@@ -165,13 +166,13 @@ def _local_origin(header_mins, header_maxs, scales, world: np.ndarray, whole: bo
     hmin, hmax = np.asarray(header_mins, np.float64), np.asarray(header_maxs, np.float64)
     if len(world) == 0:
         return np.floor(hmin) if np.all(np.isfinite(hmin)) else np.zeros(3)
-    lo, hi = world.min(axis=0), world.max(axis=0)
+    lo, hi = column_min(world), column_max(world)
     if whole and np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)):
         from roadx_ti.isolation import SMALL_PART, isolated
 
         far = isolated(world, SMALL_PART)
         if far is not None:
-            return np.floor(world[~far].min(axis=0))
+            return np.floor(column_min(world[~far]))
     tol = np.abs(np.asarray(scales, np.float64))
     if np.all(np.isfinite(hmin)) and np.all(lo >= hmin - tol) and np.all(hi <= hmax + tol):
         return np.floor(hmin)
@@ -439,7 +440,7 @@ def info_las(path) -> dict:
                 seen += len(chunk)
                 hist += np.bincount(np.asarray(chunk.classification, dtype=np.uint8), minlength=256)
                 xyz = _world_xyz(chunk)
-                lo, hi = np.minimum(lo, xyz.min(axis=0)), np.maximum(hi, xyz.max(axis=0))
+                lo, hi = np.minimum(lo, column_min(xyz)), np.maximum(hi, column_max(xyz))
                 survey.add(xyz[:, :2], {
                     "rgb": np.column_stack([chunk.red, chunk.green, chunk.blue]) if has_rgb else None,
                     "intensity": np.asarray(chunk.intensity), "nir": np.asarray(chunk.nir) if "nir" in dims else None,
