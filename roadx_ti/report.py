@@ -128,7 +128,10 @@ def scene_image(view: TopView, cloud) -> tuple[np.ndarray, str]:
 
         z = view.fill(view.maximum(cloud.xyz[:, 2]))
         filled = np.where(np.isfinite(z), z, np.nanmin(z) if np.isfinite(z).any() else 0.0)
-        shade = LightSource(azdeg=315, altdeg=45).hillshade(filled, vert_exag=1.0, dx=view.pixel, dy=view.pixel)
+        if min(filled.shape) >= 2:
+            shade = LightSource(azdeg=315, altdeg=45).hillshade(filled, vert_exag=1.0, dx=view.pixel, dy=view.pixel)
+        else:       # a view one pixel wide or high (a few points, a line of them) has no slope to shade
+            shade = np.full(filled.shape, 0.5)
         if _varies(cloud.intensity):
             grey = _stretch(view.fill(view.mean(cloud.intensity)), 2, 98)
             grey = np.where(np.isfinite(grey), grey, 0.5) * (0.45 + 0.55 * shade)

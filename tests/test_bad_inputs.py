@@ -115,6 +115,25 @@ def case_two_points(d):
     return _demo(d, src, code=0, check=lambda c: _las_result(c, src))
 
 
+def _with_top_view(case: Case, src: Path) -> None:
+    _las_result(case, src)
+    assert case.output.with_suffix(".png").stat().st_size > 0
+
+
+def case_three_points_with_the_top_view(d):
+    """3 points without colour, the top-view PNG on (the catalogue's other runs leave it off): a
+    picture a pixel or two across has no slope to shade, and is written all the same."""
+    src = write_las(d / "in" / "three.las", bumpy_ground(3))
+    return _demo(d, src, code=0, extra=["--set", "output.report_png=true"], check=lambda c: _with_top_view(c, src))
+
+
+def case_a_line_of_points_with_the_top_view(d):
+    """50 points on one line (a scan line, a profile), the top-view PNG on: a graceful result."""
+    xyz = np.column_stack([500_000.0 + 0.3 * np.arange(50), np.full(50, 4_500_000.0), np.full(50, 100.0)])
+    src = write_las(d / "in" / "line.las", xyz)
+    return _demo(d, src, code=0, extra=["--set", "output.report_png=true"], check=lambda c: _with_top_view(c, src))
+
+
 def _ground_laz(d, name="ground.laz", n=3000) -> Path:
     return write_las(d / "in" / name, bumpy_ground(n))
 
