@@ -412,7 +412,9 @@ def test_text_layouts(tmp_path):
         f"{p[0]:.3f},{p[1]:.3f},{p[2]:.3f},{i},2" for p, i in zip(xyz, inten)) + "\n")
     (tmp_path / "cc.txt").write_text("//X,Y,Z,R,G,B\n" + "\n".join(
         f"{p[0]:.3f},{p[1]:.3f},{p[2]:.3f},{c[0]},{c[1]},{c[2]}" for p, c in zip(xyz, rgb)) + "\n")
-    for name in ("plain.xyz", "rgbi.txt", "pdal.csv", "cc.txt"):
+    (tmp_path / "semicolon.csv").write_text("x;y;z;red;green;blue\n" + "\n".join(
+        f"{p[0]:.3f};{p[1]:.3f};{p[2]:.3f};{c[0]};{c[1]};{c[2]}" for p, c in zip(xyz, rgb)) + "\n")
+    for name in ("plain.xyz", "rgbi.txt", "pdal.csv", "cc.txt", "semicolon.csv"):
         cloud = io.read(tmp_path / name)
         assert np.abs(cloud.world_xyz() - xyz).max() < 1e-4, name   # float32 local coordinates
     assert io.read(tmp_path / "plain.xyz").rgb is None
@@ -421,6 +423,7 @@ def test_text_layouts(tmp_path):
     pdal = io.read(tmp_path / "pdal.csv")
     assert np.array_equal(pdal.intensity, inten) and np.all(pdal.classification == 2)
     assert np.array_equal(io.read(tmp_path / "cc.txt").rgb, rgb)
+    assert np.array_equal(io.read(tmp_path / "semicolon.csv").rgb, rgb)
 
 
 def test_zero_points_give_an_empty_cloud(tmp_path):

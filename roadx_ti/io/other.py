@@ -9,7 +9,7 @@ classification / extra_dims / subset as the LAS writer (written as columns or pr
 - NPZ: ``xyz`` (float32, local) + ``origin`` (float64) + rgb, color_depth, intensity, classification and
   one array per attribute, so a Cloud round-trips bit for bit; an ``xyz`` without ``origin`` is taken
   as world coordinates.
-- Text (.xyz .txt .csv): whitespace or comma separated X Y Z [R G B [I]] (X Y Z I with 4 columns),
+- Text (.xyz .txt .csv): whitespace, comma or semicolon separated X Y Z [R G B [I]] (X Y Z I with 4 columns),
   '#' or '//' comments; a header naming the columns (a last comment line or a first non-numeric
   line, as our writer, CloudCompare and PDAL write them) maps named columns.
 """
@@ -416,8 +416,9 @@ def _text_layout(path):
             break
     if first is None:
         return None, names, skip
-    delimiter = "," if "," in first else None
-    tokens = [t.strip().strip('"').strip("'") for t in (first.split(",") if delimiter else first.split())]
+    # commas, semicolons (spreadsheets in locales with a decimal comma write them), else whitespace
+    delimiter = next((d for d in (",", ";") if d in first), None)
+    tokens = [t.strip().strip('"').strip("'") for t in (first.split(delimiter) if delimiter else first.split())]
     try:
         [float(t) for t in tokens]
     except ValueError:   # a header line without comment marker (PDAL writes "X","Y","Z",...)
