@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import glob
+import io
 import logging
 import os
 import sys
@@ -84,10 +85,15 @@ def init(backend: str = "auto", *, threads: int | None = None, debug: bool = Fal
     if threads:
         kwargs["cpu_max_num_threads"] = int(threads)
     for name in candidates:
+        # trying a GPU arch that is missing, Taichi warns that it falls back to the CPU: a line
+        # before our own error (or the next candidate's start) that says nothing to a user
+        trying = kwargs if name == "cpu" else dict(kwargs, log_level=ti.ERROR)
+        # ti.init prints the arch it starts to stdout, which belongs to the CLI's results: to
+        # stderr, and for a GPU arch only once it is known to be that arch (not the fallback)
+        banner = sys.stderr if name == "cpu" else io.StringIO()
         try:
-            # ti.init prints the arch to stdout; stdout belongs to the CLI's results
-            with contextlib.redirect_stdout(sys.stderr):
-                ti.init(arch=_ARCHS[name], **kwargs)
+            with contextlib.redirect_stdout(banner):
+                ti.init(arch=_ARCHS[name], **trying)
         except Exception as exc:  # Taichi raises assorted types for missing drivers
             log.debug("backend %s unavailable: %s", name, exc)
             continue
@@ -96,6 +102,9 @@ def init(backend: str = "auto", *, threads: int | None = None, debug: bool = Fal
         if name != "cpu" and arch == "cpu":
             ti.reset()
             continue
+        if trying is not kwargs:
+            ti.set_logging_level(kwargs["log_level"])
+            sys.stderr.write(banner.getvalue())
         log.info("Taichi started on arch %s", arch)
         return arch
     raise BackendError(f"backend {backend!r} is not available on this machine "

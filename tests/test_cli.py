@@ -88,3 +88,18 @@ def test_info(road_scene):
     info = json.loads(proc.stdout)
     text = json.dumps(info)
     assert "60000" in text and "11" in text
+
+
+def test_a_backend_this_machine_lacks_is_one_line_without_taichis_fallback(tmp_path):
+    """Taichi warns that it falls back to the CPU and announces the CPU it started; neither may
+    precede the one-line error (stderr holds that line and nothing else)."""
+    from cli_helpers import bumpy_ground, write_las, write_tiny_config
+
+    name = "cuda" if sys.platform == "darwin" else "metal"
+    src = write_las(tmp_path / "ground.laz", bumpy_ground(500))
+    proc = subprocess.run([sys.executable, "-m", "roadx_ti", "run", str(write_tiny_config(tmp_path)), "--input",
+                           str(src), "--output", str(tmp_path / "out.laz"), "--backend", name, "--quiet"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [f"roadx_ti: backend '{name}' is not available on this machine "
+                                                f"(tried {name})"], proc.stderr
