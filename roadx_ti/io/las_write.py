@@ -87,9 +87,16 @@ def _set_extra_dims(path, header, array: np.ndarray, extra: dict) -> laspy.Scale
     if add:
         header.add_extra_dims(add)
     record = laspy.ScaleAwarePointRecord.zeros(len(array), header=header)
-    for name in array.dtype.names:
-        if name not in replace:
-            record.array[name] = array[name]
+    fields, new_fields = array.dtype.fields, record.array.dtype.fields
+    if not replace and array.flags.c_contiguous and all(new_fields[f][1] == fields[f][1] for f in fields):
+        # the added dims follow the old ones: the old records as one block of bytes (a copy field
+        # by field is ~0.2 s per 4 M points)
+        rows = record.array.view(np.uint8).reshape(len(array), record.array.dtype.itemsize)
+        rows[:, :array.dtype.itemsize] = array.view(np.uint8).reshape(len(array), array.dtype.itemsize)
+    else:
+        for name in array.dtype.names:
+            if name not in replace:
+                record.array[name] = array[name]
     for name, values in extra.items():
         record.array[name] = values
     return record
