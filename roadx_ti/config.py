@@ -3,7 +3,7 @@
 Every key is declared with its default and unit (lengths in metres); unknown keys, wrong types and
 out-of-range values are errors that name the key, the value and what is allowed, in one line.
 ``--set a.b=value`` overrides any key; a stage is addressed by its name (``stages.sor.k=30``) or its
-position (``stages.1.k=30``).
+position (``stages.1.k=30``, or both: ``stages.1.sor.k=30``).
 """
 from __future__ import annotations
 
@@ -238,9 +238,18 @@ def apply_override(raw: dict, assignment: str) -> None:
     if not parts:
         raise ConfigError(f"--set {assignment!r}: empty key")
     node: Any = raw
+    skip = False
     for depth, part in enumerate(parts[:-1]):
+        if skip:
+            skip = False
+            continue
         if isinstance(node, list):
-            node = _stage_options(node, part, key)
+            name, node = _stage_options(node, part, key)
+            # stages.1.sor.k: the position and the name of the same stage
+            following = parts[depth + 1] if part.isdigit() and depth + 1 < len(parts) - 1 else None
+            if following is not None and following != name and following in REGISTRY:
+                raise ConfigError(f"--set {key}: stage {part} of this config is {name}, not {following}")
+            skip = following == name
             continue
         if part not in node or node[part] is None:
             node[part] = {}
@@ -253,13 +262,13 @@ def apply_override(raw: dict, assignment: str) -> None:
     node[last] = parse_value(text)
 
 
-def _stage_options(stages: list, part: str, key: str) -> dict:
+def _stage_options(stages: list, part: str, key: str) -> tuple[str, dict]:
     for i, entry in enumerate(stages):
         if isinstance(entry, dict) and (part in entry or part == str(i)):
             (name,) = entry
             if entry[name] is None:
                 entry[name] = {}
-            return entry[name]
+            return name, entry[name]
     raise ConfigError(f"--set {key}: no stage {part!r} in this config")
 
 

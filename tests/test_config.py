@@ -16,10 +16,11 @@ GOOD = {
 
 def test_good_config_and_overrides():
     cfg = config.from_mapping(GOOD, ["stages.grid_slope.step=0.25", "seed=7", "output.path=x/y.laz",
-                                     "stages.0.ratio=0.25"])
+                                     "stages.0.ratio=0.25", "stages.1.grid_slope.slope_max=0.2"])
     specs = dict(cfg.stage_list())
     assert specs["grid_slope"].step == 0.25
     assert specs["uniform_downsample"].ratio == 0.25
+    assert specs["grid_slope"].slope_max == 0.2          # position and name of the same stage
     assert cfg.seed == 7 and cfg.output.path == "x/y.laz"
     assert cfg.truth_classes == [11]
     assert "grid_slope" in config.dump(cfg)
@@ -36,6 +37,7 @@ def test_good_config_and_overrides():
     (GOOD, ["stages.grid_slope.stepp=1"], "stages[1].grid_slope.stepp = 1: unknown key"),
     (GOOD, ["stages.grid_slope.step=abc"], "stages[1].grid_slope.step = 'abc'"),
     (GOOD, ["stages.sor.k=3"], "no stage 'sor'"),
+    (GOOD, ["stages.1.uniform_downsample.ratio=0.5"], "stage 1 of this config is grid_slope, not uniform_downsample"),
     (GOOD, ["seed"], "expected KEY=VALUE"),
     ({"stages": [{"uniform_downsample": {}}]}, [], "exactly one of target_points, ratio or target_density"),
 ])
