@@ -102,7 +102,7 @@ def init(backend: str = "auto", *, threads: int | None = None, debug: bool = Fal
         if name != "cpu" and arch == "cpu":
             ti.reset()
             continue
-        if trying is not kwargs:
+        if name != "cpu":
             ti.set_logging_level(kwargs["log_level"])
             sys.stderr.write(banner.getvalue())
         log.info("Taichi started on arch %s", arch)

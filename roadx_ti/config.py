@@ -238,18 +238,18 @@ def apply_override(raw: dict, assignment: str) -> None:
     if not parts:
         raise ConfigError(f"--set {assignment!r}: empty key")
     node: Any = raw
-    skip = False
-    for depth, part in enumerate(parts[:-1]):
-        if skip:
-            skip = False
-            continue
+    i = 0
+    while i < len(parts) - 1:
+        part = parts[i]
+        i += 1
         if isinstance(node, list):
             name, node = _stage_options(node, part, key)
             # stages.1.sor.k: the position and the name of the same stage
-            following = parts[depth + 1] if part.isdigit() and depth + 1 < len(parts) - 1 else None
-            if following is not None and following != name and following in REGISTRY:
-                raise ConfigError(f"--set {key}: stage {part} of this config is {name}, not {following}")
-            skip = following == name
+            if part.isdigit() and i < len(parts) - 1:
+                if parts[i] == name:
+                    i += 1
+                elif parts[i] in REGISTRY:
+                    raise ConfigError(f"--set {key}: stage {part} of this config is {name}, not {parts[i]}")
             continue
         if part not in node or node[part] is None:
             node[part] = {}

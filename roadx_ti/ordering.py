@@ -45,34 +45,29 @@ def canonical_order(cloud) -> np.ndarray | None:
         # equal (block, x), common with quantised coordinates: by y and z in one 64-bit key; only
         # points equal in all three are sorted by their attributes (the same order as sorting the
         # first ties by y, z and the attributes at once: each sort is stable)
-        members, group = _tie_groups(order, tie)
+        tied, members, group = _tie_groups(order, tie)
         yz = (_sortable(xyz[members, 1]).astype(np.uint64) << np.uint64(32)) | _sortable(xyz[members, 2]).astype(np.uint64)
         by_yz = np.lexsort((yz, group))
         members, group, yz = members[by_yz], group[by_yz], yz[by_yz]
-        order[_tie_mask(tie)] = members
+        order[tied] = members
         same = (group[1:] == group[:-1]) & (yz[1:] == yz[:-1])
         if same.any():
-            at = np.flatnonzero(_tie_mask(tie))
-            rest, rest_group = _tie_groups(members, same)
+            still, rest, rest_group = _tie_groups(members, same)
             keys = [a[rest] for a in _attribute_keys(cloud)] + [rest_group]
-            order[at[_tie_mask(same)]] = rest[np.lexsort(keys)]
+            order[np.flatnonzero(tied)[still]] = rest[np.lexsort(keys)]
     if (order == np.arange(n)).all():
         return None
     return order
 
 
-def _tie_mask(tie: np.ndarray) -> np.ndarray:
-    """Per sorted position: equal to its predecessor or successor (``tie``: position i + 1 equals i)."""
-    mask = np.zeros(len(tie) + 1, bool)
-    mask[1:] |= tie
-    mask[:-1] |= tie
-    return mask
-
-
 def _tie_groups(order: np.ndarray, tie: np.ndarray):
-    """The members of the tied runs of ``order`` and, per member, its run's number (increasing)."""
-    mask = _tie_mask(tie)
-    return order[mask], np.cumsum(np.concatenate([[True], ~tie]))[mask]
+    """The tied runs of ``order`` (``tie``: position i + 1 equals position i): which positions are
+    in one (equal to their predecessor or successor), their members and, per member, its run's
+    number (increasing)."""
+    tied = np.zeros(len(order), bool)
+    tied[1:] |= tie
+    tied[:-1] |= tie
+    return tied, order[tied], np.cumsum(np.concatenate([[True], ~tie]))[tied]
 
 
 def _attribute_keys(cloud):

@@ -4,17 +4,18 @@ commit against another, alternating rounds (each round a fresh TI_OFFLINE_CACHE_
     python benchmarks/commit_ab/first_call.py --base-tree DIR SCENE.laz [--rounds 2]
 
 ``--base-tree``: a checkout of the base commit with its own ``.venv`` (``./dev setup`` there); this
-checkout is the other side. Prints the wall times per round, the medians and base / new per round.
+checkout is the other side. Wall times from GNU time, as in run.py. Prints the wall times per
+round, the medians and base / new per round.
 """
 import argparse
 import json
 import os
-import subprocess
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
+
+from run import run_cli     # this folder's A/B runner (the CLI in a tree's own .venv, under GNU time)
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -33,14 +34,9 @@ def main() -> int:
                 with tempfile.TemporaryDirectory() as cache:
                     env = dict(os.environ, TI_OFFLINE_CACHE_FILE_PATH=cache)
                     for kind in ("cold", "cached"):
-                        t = time.perf_counter()
-                        proc = subprocess.run([str(tree / ".venv" / "bin" / "python"), "-m", "roadx_ti", "run",
-                                               "configs/road_uav.yaml", "--input", str(a.scene.resolve()),
-                                               "--output", str(Path(tmp) / f"{side}.laz"), "--quiet"],
-                                              cwd=tree, env=env, capture_output=True, text=True)
-                        if proc.returncode != 0:
-                            raise SystemExit(f"run in {tree} failed: {proc.stderr.strip().splitlines()[-1:]}")
-                        rows[side][kind].append(round(time.perf_counter() - t, 2))
+                        row = run_cli(tree, "configs/road_uav.yaml", a.scene.resolve(), Path(tmp) / f"{side}.laz",
+                                      env=env)
+                        rows[side][kind].append(row["wall_s"])
                 print(side, rows[side], flush=True)
     print(json.dumps({s: {k: float(np.median(v)) for k, v in d.items()} for s, d in rows.items()}))
     for kind in ("cold", "cached"):

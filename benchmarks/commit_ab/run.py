@@ -33,19 +33,14 @@ def _commit(tree: Path) -> str:
                           text=True, check=True).stdout.strip()
 
 
-def _run(tree: Path, config: str, scene: Path, out: Path) -> dict:
-    """One CLI run in ``tree`` with its own .venv, under GNU time: wall, user + system CPU
-    seconds and the child's own peak RSS (MB)."""
-    with tempfile.NamedTemporaryFile("r", suffix=".time") as stats:
-        proc = subprocess.run(["/usr/bin/time", "-o", stats.name, "-f", "%e %U %S %M",
-                               str(tree / ".venv" / "bin" / "python"), "-m", "roadx_ti", "run", config,
-                               "--input", str(scene), "--output", str(out), "--quiet"], cwd=tree,
-                              capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise SystemExit(f"run in {tree} failed: {proc.stderr.strip().splitlines()[-1:]}")
-        wall, user, system, rss_kb = stats.read().split()[-4:]
-    return {"wall_s": float(wall), "cpu_s": round(float(user) + float(system), 2),
-            "peak_rss_mb": round(int(rss_kb) / 1024, 1)}
+def run_cli(tree: Path, config: str, scene: Path, out: Path, env: dict | None = None) -> dict:
+    """One CLI run in ``tree`` with its own .venv, under GNU time (roadx_ti.bench.child): wall,
+    user + system CPU seconds and the child's own peak RSS (MB)."""
+    from roadx_ti.bench.child import timed_run
+
+    row, _ = timed_run([tree / ".venv" / "bin" / "python", "-m", "roadx_ti", "run", config, "--input", scene,
+                        "--output", out, "--quiet"], cwd=tree, env=env)
+    return row
 
 
 def main() -> int:
@@ -70,10 +65,10 @@ def main() -> int:
                         "--seed", str(a.seed), "-o", str(scene)], cwd=REPO, check=True, capture_output=True)
         generation = time.perf_counter() - t0
         for side, tree in trees.items():       # warm-up: compile into each side's offline cache
-            _run(tree, a.config, scene, Path(tmp) / f"{side}.laz")
+            run_cli(tree, a.config, scene, Path(tmp) / f"{side}.laz")
         for _ in range(a.rounds):
             for side, tree in trees.items():
-                rows[side].append(_run(tree, a.config, scene, Path(tmp) / f"{side}.laz"))
+                rows[side].append(run_cli(tree, a.config, scene, Path(tmp) / f"{side}.laz"))
     ratio = [b["wall_s"] / nw["wall_s"] for b, nw in zip(rows["base"], rows["new"])]
     cpu_ratio = [b["cpu_s"] / nw["cpu_s"] for b, nw in zip(rows["base"], rows["new"])]
     result = {"command": " ".join(["python", "benchmarks/commit_ab/run.py"] + sys.argv[1:]),

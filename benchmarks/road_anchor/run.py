@@ -34,16 +34,10 @@ STEP_OF_STAGE = {"uniform_downsample": "downsample", "sor": "sor", "ransac_plane
                  "grid_slope": "grid_slope", "cloth_smooth": "cloth", "road_regions": "clusters"}
 
 
-def timed(argv: list[str]) -> tuple[dict, str]:
-    """One child process under GNU time: wall, CPU seconds, peak RSS (MB), and its stdout."""
-    with tempfile.NamedTemporaryFile("r", suffix=".time") as stats:
-        proc = subprocess.run(["/usr/bin/time", "-o", stats.name, "-f", "%e %U %S %M", *argv], cwd=REPO,
-                              capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise SystemExit(f"{' '.join(argv[:3])} failed: {proc.stderr.strip().splitlines()[-1:]}")
-        wall, user, system, rss_kb = stats.read().split()[-4:]
-    return {"wall_s": float(wall), "cpu_s": round(float(user) + float(system), 2),
-            "peak_rss_mb": round(int(rss_kb) / 1024, 1)}, proc.stdout
+def timed(argv: list) -> tuple[dict, str]:
+    from roadx_ti.bench.child import timed_run
+
+    return timed_run(argv, cwd=REPO)
 
 
 def errors(truth: np.ndarray, output: Path) -> dict:

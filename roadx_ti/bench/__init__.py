@@ -2,7 +2,8 @@
 
 The parts: ``cases`` (where the cases live, their order, the scenes), ``command`` (the subcommand's
 arguments and plan), ``runner`` (the worker subprocesses, rounds, ratios), ``measure`` (one worker:
-timing and RSS), ``machine`` (machine facts), ``render`` (results page and plot).
+timing and RSS), ``machine`` (machine facts), ``render`` (results page and plot), ``child`` (a whole process under
+GNU time, for the end-to-end scripts in ``benchmarks/``).
 
 The cases live in ``benchmarks/`` at the repository root, one module per stage (``knn.py``,
 ``sor.py``, ...). A case module declares

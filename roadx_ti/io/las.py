@@ -135,8 +135,7 @@ def _check_magnitude(path, world: np.ndarray, scales) -> None:
     1e308: every point collapses onto one value) are a broken header, not a survey."""
     if not len(world):
         return
-    with np.errstate(invalid="ignore"):
-        reach = column_abs_nanmax(world)
+    reach = column_abs_nanmax(world)
     limit = np.maximum(np.abs(np.asarray(scales, np.float64)), 1e-3) * 2.0**52
     bad = np.flatnonzero(np.isfinite(reach) & (reach > limit))
     if len(bad):
