@@ -60,7 +60,7 @@ def _parser() -> argparse.ArgumentParser:
     i.add_argument("--text", action="store_true", help="print for a person instead of JSON")
 
     s = sub.add_parser("synth", help="write a synthetic scene with truth classes")
-    s.add_argument("--kind", required=True, choices=["uav-road", "uav-road-v1", "als-roof"])
+    s.add_argument("--kind", required=True, choices=["uav-road", "uav-road-v1", "als-roof", "als-roof-v1"])
     s.add_argument("--points", required=True, type=parse_point_count)
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("-o", "--output", required=True)

@@ -27,7 +27,7 @@ class _Strict(BaseModel):
 
 
 class SyntheticInput(_Strict):
-    kind: Literal["uav-road", "uav-road-v1", "als-roof"] = "uav-road"
+    kind: Literal["uav-road", "uav-road-v1", "als-roof", "als-roof-v1"] = "uav-road"
     points: int = Field(1_000_000, ge=1000, lt=2**31, description="number of points")
     seed: int = Field(0, ge=0)
 

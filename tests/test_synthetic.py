@@ -14,7 +14,7 @@ from roadx_ti.synthetic import KINDS, generate
 from roadx_ti.synthetic.streets import street_look
 
 CLASSES = {"uav-road": (1, 2, 3, 4, 5, 6, 7, 11, 18), "uav-road-v1": (1, 2, 3, 4, 5, 6, 7, 11, 18),
-           "als-roof": (1, 2, 3, 4, 5, 6, 7, 11, 18)}
+           "als-roof": (1, 2, 3, 4, 5, 6, 7, 11, 18), "als-roof-v1": (1, 2, 3, 4, 5, 6, 7, 11, 18)}
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +22,7 @@ def scenes():
     # uav-road seed 2 at 1 M: 94 m at its drawn 113 points/m2, lots with buildings, hedges, beds
     # (a 300 k scene of a dense seed is a 40 m street corner that may hold none of them)
     return {"uav-road": generate("uav-road", 1_000_000, seed=2), "uav-road-v1": generate("uav-road-v1", 300_000, seed=3),
-            "als-roof": generate("als-roof", 200_000, seed=3)}
+            "als-roof": generate("als-roof", 200_000, seed=3), "als-roof-v1": generate("als-roof-v1", 200_000, seed=3)}
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -175,3 +175,31 @@ def test_bad_arguments(kind, n):
     with pytest.raises(ValueError) as info:
         generate(kind, n)
     assert "\n" not in str(info.value)
+
+
+def test_als_sheds_are_other_and_v1_keeps_them_building():
+    """Issue 16 point 6: als-roof labels its garden sheds (under 10.3 m2, alone in a lot corner)
+    "other", as IGN's truth does; als-roof-v1 is the same scene with them labelled building, as
+    earlier releases (same points, colours and intensities; only those labels differ)."""
+    from roadx_ti.synthetic.als_roof import AlsRoofScene
+
+    n, seed = 120_000, 1
+    new, v1 = generate("als-roof", n, seed=seed), generate("als-roof-v1", n, seed=seed)
+    for name in ("xyz", "rgb", "intensity"):
+        np.testing.assert_array_equal(getattr(new, name), getattr(v1, name))
+    changed = new.classification != v1.classification
+    assert changed.sum() > 100
+    assert set(np.unique(v1.classification[changed])) == {6} and set(np.unique(new.classification[changed])) == {1}
+    scene = AlsRoofScene(AlsRoofScene.side_for(n, seed), seed)
+    boxes = scene.buildings
+    sheds = boxes.cls == 1
+    assert sheds.any() and np.all(4 * boxes.hx[sheds] * boxes.hy[sheds] < 10.3)
+    # every relabelled point lies on a shed's footprint (its roof overhang included)
+    xy = new.xyz[changed, :2].astype(np.float64)
+    inside = np.zeros(len(xy), bool)
+    for cx, cy, hx, hy, ang, over in zip(boxes.cx[sheds], boxes.cy[sheds], boxes.hx[sheds], boxes.hy[sheds],
+                                         boxes.ang[sheds], boxes.over[sheds]):
+        c, s = np.cos(ang), np.sin(ang)
+        dx, dy = xy[:, 0] - cx, xy[:, 1] - cy
+        inside |= (np.abs(dx * c + dy * s) <= hx + over + 0.1) & (np.abs(-dx * s + dy * c) <= hy + over + 0.1)
+    assert inside.all()

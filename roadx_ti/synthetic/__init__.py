@@ -8,14 +8,16 @@ Pure numpy, deterministic from ``seed``; one module per scene kind on a shared b
   several widths with parking lanes, light or dark asphalt, sidewalks within 6-15 grey levels of it
   behind 8-16 cm kerbs with lowered kerbs at crossings, shadows, cars, canopies over the road.
 - ``uav-road-v1`` (``uav_road_v1``): the straight-road scene of earlier releases, bit for bit.
-- ``als-roof`` (``als_roof``): airborne LiDAR suburb with orthophoto colour.
+- ``als-roof`` (``als_roof``): airborne LiDAR suburb with orthophoto colour; its garden sheds
+  (under 10.3 m2) are "other" (1), not building, as in IGN Lidar HD's truth.
+- ``als-roof-v1``: the same scenes with the sheds labelled building (6), as earlier releases, bit for bit.
 
 Surfaces are sampled by area, thinned by a density field and by occlusion, then trimmed to exactly
 ``n_points``; a fraction of outliers is added last. Truth is the ASPRS class of every point:
 
-    1 other (cars, lamp posts)      2 ground (sidewalks, kerbs, grass, hillside, yards)
+    1 other (cars, lamp posts; als-roof's garden sheds)   2 ground (sidewalks, kerbs, grass, hillside, yards)
     3/4/5 low / medium / high vegetation (flower beds, bushes and hedges, trees)
-    6 building (roofs, walls, chimneys, roof superstructures, sheds and annexes)
+    6 building (roofs, walls, chimneys, roof superstructures, annexes)
     7 low noise, 18 high noise, 11 road surface (carriageway and parking lanes with their markings)
 
 Coordinates: ``xyz`` is local float32 in [0, side] x [0, side] (plus heights), ``origin`` the
@@ -28,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from roadx_ti.cloud import Cloud
-from roadx_ti.synthetic.als_roof import AlsRoofScene
+from roadx_ti.synthetic.als_roof import AlsRoofScene, AlsRoofV1Scene
 from roadx_ti.synthetic.base import (
     CLASS_BUILDING,
     CLASS_GROUND,
@@ -43,7 +45,7 @@ from roadx_ti.synthetic.base import (
 from roadx_ti.synthetic.streets import StreetScene
 from roadx_ti.synthetic.uav_road_v1 import UavRoadV1Scene
 
-SCENES = {cls.KIND: cls for cls in (StreetScene, UavRoadV1Scene, AlsRoofScene)}
+SCENES = {cls.KIND: cls for cls in (StreetScene, UavRoadV1Scene, AlsRoofScene, AlsRoofV1Scene)}
 KINDS = tuple(SCENES)
 ORIGINS = {kind: cls.ORIGIN for kind, cls in SCENES.items()}
 MIN_POINTS = 1000

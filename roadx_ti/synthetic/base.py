@@ -349,7 +349,8 @@ class Scene:
 
     def _emit_boxes(self, boxes, rho, wall_factor, cls, windows):
         """Roofs (flat, gable, hip) and walls of rotated boxes (buildings, chimneys, car bodies).
-        Walls get ``wall_factor`` of the surface density (nadir views and ALS see few)."""
+        Walls get ``wall_factor`` of the surface density (nadir views and ALS see few); ``cls``: one
+        class, or one per box."""
         if boxes.n == 0:
             return
         rng = self.rng_sample
@@ -366,7 +367,7 @@ class Scene:
         k = self._keep(x, y)
         z = roof_height(lx[k], ly[k], {kk: v[k] for kk, v in b.items()})
         rgb = noisy_colour(boxes.roof_rgb[idx[k]], int(k.sum()), rng, 7.0)
-        self._emit(x[k], y[k], z, rgb, cls, self._material_intensity(boxes, idx[k], 1.0))
+        self._emit(x[k], y[k], z, rgb, cls if np.ndim(cls) == 0 else cls[idx[k]], self._material_intensity(boxes, idx[k], 1.0))
         # walls, sampled by area along the perimeter, cut by the roof line
         per = 4 * (f["hx"] + f["hy"])
         hmax = f["ridge"] - f["base"]
@@ -395,7 +396,7 @@ class Scene:
             base_rgb = boxes.roof_rgb[idx].astype(F32)
             rel = f["eave"][idx] - z
             base_rgb[(rel > F32(0.1)) & (rel < F32(0.55))] = (30, 34, 40)
-        self._emit(x, y, z, noisy_colour(base_rgb, len(x), rng, 7.0), cls,
+        self._emit(x, y, z, noisy_colour(base_rgb, len(x), rng, 7.0), cls if np.ndim(cls) == 0 else cls[idx],
                    self._material_intensity(boxes, idx, 0.6))
 
     def _emit_beds(self, rho):
