@@ -108,6 +108,9 @@ class RunConfig(_Strict):
     @field_validator("stages")
     @classmethod
     def _stage_entries(cls, stages):
+        if not stages:      # only a list given in the file gets here: a left-out key is the defaults
+            raise ValueError("stages: the list is empty; list the stages to run, or leave out "
+                             "'stages' for the pipeline's default stages")
         for i, entry in enumerate(stages):
             if not isinstance(entry, dict) or len(entry) != 1:
                 raise ValueError(f"stages[{i}] must be a mapping of one stage name to its options")
@@ -306,5 +309,9 @@ def from_mapping(raw: dict, overrides: list[str] = ()) -> RunConfig:
 
 
 def dump(cfg: RunConfig) -> str:
-    """The resolved config as YAML (what was run, written beside the output)."""
-    return yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False)
+    """The resolved config as YAML (what was run, written beside the output): every stage that
+    ran with all its options, defaults included (a config that left 'stages' out lists the
+    pipeline's default stages), so that running the file again runs the same."""
+    data = cfg.model_dump(mode="json")
+    data["stages"] = [{name: options.model_dump(mode="json")} for name, options in cfg.pipeline_stages()]
+    return yaml.safe_dump(data, sort_keys=False)

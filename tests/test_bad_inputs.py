@@ -290,6 +290,15 @@ def case_unknown_key(d):
     return _tiny(d, src, extra=["--set", "colour=true"], code=2, message="colour = True: unknown key")
 
 
+def case_empty_stage_list(d):
+    """'stages: []' in the config: exit 2 before any work, not the pipeline's defaults run in its
+    place (leaving the key out is how to ask for those)."""
+    src = _ground_laz(d)
+    config = d / "empty_stages.yaml"
+    config.write_text("pipeline: ground\nstages: []\n")
+    return _run(config, d, src, code=2, message="stages: the list is empty")
+
+
 def case_zero_cell_size(d):
     """grid_slope.step = 0: exit 2 before any work, the key named."""
     src = _ground_laz(d)

@@ -26,6 +26,27 @@ def test_good_config_and_overrides():
     assert "grid_slope" in config.dump(cfg)
 
 
+def test_written_config_lists_what_ran_and_runs_the_same(tmp_path):
+    """The config written beside an output names every stage that ran with all its options: a
+    config that left 'stages' out gets the pipeline's defaults written, and loading the file
+    again gives the same stages and options."""
+    from roadx_ti import pipelines
+
+    cfg = config.from_mapping({"pipeline": "road"})
+    assert cfg.stage_list() == []
+    path = tmp_path / "ran.yaml"
+    path.write_text(config.dump(cfg))
+    again = config.load(path)
+    names = [name for name, _ in again.stage_list()]
+    assert names == list(pipelines.DEFAULT_STAGES["road"])
+    assert [(n, o.model_dump()) for n, o in again.stage_list()] == \
+        [(n, o.model_dump()) for n, o in cfg.pipeline_stages()]
+    tuned = config.from_mapping(GOOD, ["stages.grid_slope.step=0.25"])
+    path.write_text(config.dump(tuned))
+    assert [(n, o.model_dump()) for n, o in config.load(path).stage_list()] == \
+        [(n, o.model_dump()) for n, o in tuned.stage_list()]
+
+
 @pytest.mark.parametrize("mapping, overrides, expected", [
     ({"pipeline": "road", "colour": 1}, [], "colour = 1: unknown key"),
     ({"pipeline": "rod"}, [], "pipeline = 'rod'"),
@@ -40,6 +61,7 @@ def test_good_config_and_overrides():
     (GOOD, ["stages.1.uniform_downsample.ratio=0.5"], "stage 1 of this config is grid_slope, not uniform_downsample"),
     (GOOD, ["seed"], "expected KEY=VALUE"),
     ({"stages": [{"uniform_downsample": {}}]}, [], "exactly one of target_points, ratio or target_density"),
+    ({"pipeline": "ground", "stages": []}, [], "stages: the list is empty"),
 ])
 def test_config_errors_are_one_line(mapping, overrides, expected):
     with pytest.raises(config.ConfigError) as info:
