@@ -52,6 +52,22 @@ NOTES = {
         "99.62 % of the labels agree, tiled E1 3.33 % against 1.07 % untiled; most of the difference is "
         "one road corner of ~60 m2 that the tile's own cut leaves out (its colour model is learnt from "
         "the kerbs inside the tile window) (2026-12-01).",
+        "The same at `--tile-size 100` (9 tiles, 30 m buffers; commit 5a6b8c5, 2026-12-04): 99.897 % "
+        "agree (4,118 points; tiled E1 1.41 / E2 0.47 %, untiled 1.08 / 0.44 %). 3,383 of the "
+        "disagreements lie more than 20 m inside a core, so no buffer closes them; with the untiled "
+        "run's height and colour noise forced into every tile (`--set "
+        "stages.road_regions.height_noise=0.0231 --set stages.road_regions.colour_noise=1.747`) 99.901 "
+        "%, and with the merge levels run to the end (`settle` 1e-9, both runs) 99.903 %: the per-tile "
+        "estimates and the settle cut-off are minor; what differs is the road selection, learnt and cut "
+        "per tile window (2,430 points the untiled run calls road are lost, mostly one ~2,000-point "
+        "patch of a few regions 20-30 m from two borders). Neither the learnt colour term (`--set "
+        "stages.road_regions.weights.colour=0` in both runs: 99.901 %) nor the component rules "
+        "(`weights.keep_area=0`, `keep_area_kerb=0`, `min_area=0`: 99.884 %) is the cause on its own "
+        "(commit 2884d59). The likely cause (inferred, not isolated by a measurement): the cut is one "
+        "minimum cut over the tile's region graph, and regions that reach across the window edge (a "
+        "street is one region over many tiles) enter it with other sizes and mean colours than in the "
+        "whole run, which moves ambiguous pieces far from any border; closing that takes regions "
+        "reconciled across tiles, not a buffer.",
         "A vegetation cue by excess green of region mean colours (a257b4f; unchanged by shadow) took "
         "shaded lawns continuous with the road out of it: 4 M seed 3 E2 12.09 -> 2.91 %, 300 k seed 2 "
         "0.95 -> 0.78 %; 6 of 31 synthetic scenes still break a bound (2026-12-03).",
