@@ -398,7 +398,9 @@ def write_npz(path, cloud: Cloud, classification=None, extra_dims=None, subset=N
 # ----------------------------------------------------------------------------------------- text
 
 def _text_layout(path):
-    """(delimiter, column names or None, rows to skip) from the first lines of a text file."""
+    """(delimiter, column names or None, rows to skip, columns to read or None) from the first
+    lines of a text file. Columns: None for all; a range when lines end in empty fields (a
+    delimiter at the end of every line, as some spreadsheet and script exports write)."""
     names, skip, first = None, 0, None
     with open(path, "r", encoding="utf-8", errors="replace") as f:
         for line in f:
@@ -407,7 +409,7 @@ def _text_layout(path):
                 skip += 1
                 continue
             if stripped.startswith(("#", "//")):
-                words = re.split(r"[\s,;]+", stripped.lstrip("#/").strip())
+                words = [w for w in re.split(r"[\s,;]+", stripped.lstrip("#/").strip()) if w]
                 if words and words[0].lower() in ("x", "//x"):
                     names = words
                 skip += 1
@@ -415,22 +417,39 @@ def _text_layout(path):
             first = stripped
             break
     if first is None:
-        return None, names, skip
+        return None, names, skip, None
     # commas, semicolons (spreadsheets in locales with a decimal comma write them), else whitespace
     delimiter = next((d for d in (",", ";") if d in first), None)
     tokens = [t.strip().strip('"').strip("'") for t in (first.split(delimiter) if delimiter else first.split())]
+    width = len(tokens)
+    while width and not tokens[width - 1]:
+        width -= 1
+    columns = range(width) if width < len(tokens) else None
+    tokens = tokens[:width]
     try:
         [float(t) for t in tokens]
     except ValueError:   # a header line without comment marker (PDAL writes "X","Y","Z",...)
         names, skip = tokens, skip + 1
-    return delimiter, names, skip
+    if names is not None:
+        names = [n for n in names if n] if columns is not None else names
+    return delimiter, names, skip, columns
+
+
+def _quoting(path, skip: int) -> dict:
+    """loadtxt's comment and quote options: values in double quotes (spreadsheet exports) are read
+    when the first data line holds one (numpy then takes one comment marker only, '#')."""
+    with open(path, "r", encoding="utf-8", errors="replace") as f:
+        for number, line in enumerate(f):
+            if number >= skip and line.strip() and not line.lstrip().startswith(("#", "//")):
+                return {"comments": "#", "quotechar": '"'} if '"' in line else {"comments": ("#", "//")}
+    return {"comments": ("#", "//")}
 
 
 def read_text(path, origin=None) -> Cloud:
-    delimiter, names, skip = _text_layout(path)
+    delimiter, names, skip, columns = _text_layout(path)
     try:
         table = np.loadtxt(path, dtype=np.float64, delimiter=delimiter, skiprows=skip,
-                           comments=("#", "//"), ndmin=2)
+                           ndmin=2, usecols=columns, **_quoting(path, skip))
     except ValueError as exc:
         raise fail(path, f"not a point table ({' '.join(str(exc).split())})") from None
     if table.size == 0:
