@@ -89,8 +89,9 @@ def init(backend: str = "auto", *, threads: int | None = None, debug: bool = Fal
         # before our own error (or the next candidate's start) that says nothing to a user
         trying = kwargs if name == "cpu" else dict(kwargs, log_level=ti.ERROR)
         # ti.init prints the arch it starts to stdout, which belongs to the CLI's results: to
-        # stderr, and for a GPU arch only once it is known to be that arch (not the fallback)
-        banner = sys.stderr if name == "cpu" else io.StringIO()
+        # stderr, for a GPU arch only once it is known to be that arch (not the fallback), and
+        # not at all when our own info lines are off (the CLI's --quiet)
+        banner = io.StringIO()
         try:
             with contextlib.redirect_stdout(banner):
                 ti.init(arch=_ARCHS[name], **trying)
@@ -104,6 +105,7 @@ def init(backend: str = "auto", *, threads: int | None = None, debug: bool = Fal
             continue
         if name != "cpu":
             ti.set_logging_level(kwargs["log_level"])
+        if log.isEnabledFor(logging.INFO):
             sys.stderr.write(banner.getvalue())
         log.info("Taichi started on arch %s", arch)
         return arch

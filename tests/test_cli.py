@@ -36,6 +36,7 @@ def test_run_demo_config_end_to_end(tmp_path, road_scene):
     proc = run_cli("run", str(REPO / "configs" / "demo.yaml"), "--input", str(road_scene),
                    "--output", str(out), "--backend", "cpu", "--quiet")
     assert proc.returncode == 0, proc.stderr
+    assert "[Taichi]" not in proc.stderr and not proc.stdout   # --quiet: Taichi's start banner too
     assert road_scene.read_bytes() == before          # input untouched
     las = laspy.read(out)
     src = laspy.read(road_scene)
