@@ -33,7 +33,7 @@ def _parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("run", help="run a pipeline from a YAML config")
     r.add_argument("config", help="YAML config (see configs/)")
-    r.add_argument("--input", nargs="+", metavar="PATH", help="input point cloud(s), replacing the config's")
+    r.add_argument("--input", nargs="+", metavar="PATH", help="input point cloud(s), folder(s) or quoted wildcard patterns ('tiles/*.laz'), replacing the config's")
     r.add_argument("--output", metavar="PATH", help="output point cloud, replacing the config's")
     r.add_argument("--backend", choices=["auto", "cpu", "vulkan", "cuda", "metal"])
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -230,9 +230,7 @@ def cmd_run(args) -> int:
         cfg.backend = args.backend
     if not cfg.input.paths and cfg.input.synthetic is None:
         raise config.ConfigError("config error: input: give input.paths, input.synthetic or --input PATH")
-    for p in cfg.input.paths:
-        if not Path(p).exists():
-            raise config.ConfigError(f"config error: input.paths = {p!r}: no such file")
+    cfg.input.paths = _expand_patterns(cfg.input.paths)
     out = Path(cfg.output.path)
     from roadx_ti import memory
     if cfg.memory_limit:
@@ -423,6 +421,27 @@ def _make_parent(out: Path) -> None:
         out.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise DataError(f"{out}: cannot create the output folder: {exc.strerror}") from None
+
+
+def _expand_patterns(paths: list[str]) -> list[str]:
+    """Input paths as given, a wildcard pattern (tiles/*.laz, as PDAL and shells take) replaced by
+    the files it matches in sorted order; a path that is neither is a one-line config error."""
+    import glob
+
+    from roadx_ti.config import ConfigError
+
+    out = []
+    for p in paths:
+        if Path(p).exists():
+            out.append(p)
+        elif glob.has_magic(p):
+            matches = sorted(m for m in glob.glob(p) if Path(m).is_file())
+            if not matches:
+                raise ConfigError(f"config error: input.paths = {p!r}: no file matches the pattern")
+            out.extend(matches)
+        else:
+            raise ConfigError(f"config error: input.paths = {p!r}: no such file")
+    return out
 
 
 def _progress_bar(total: int, quiet: bool):

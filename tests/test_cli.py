@@ -104,3 +104,29 @@ def test_a_backend_this_machine_lacks_is_one_line_without_taichis_fallback(tmp_p
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [f"roadx_ti: backend '{name}' is not available on this machine "
                                                 f"(tried {name})"], proc.stderr
+
+
+def test_input_wildcard_pattern_reads_the_files_it_matches(tmp_path):
+    """--input 'tiles/*.laz' (quoted, so no shell expands it) runs over every matching file, in
+    sorted order, as a catalog; a pattern matching nothing is a one-line error, exit 2."""
+    sys.path.insert(0, str(REPO / "tests"))
+    from cli_helpers import bumpy_ground, write_las
+
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    ground = bumpy_ground(4000, seed=2)
+    write_las(tiles / "b.laz", ground + [30.0, 0.0, 0.0])
+    write_las(tiles / "a.laz", ground)
+    (tiles / "notes.txt").write_text("not a point file")
+    out = tmp_path / "out" / "ground.laz"
+    proc = run_cli("run", str(REPO / "configs" / "ground.yaml"), "--input", str(tiles / "*.laz"),
+                   "--output", str(out), "--backend", "cpu", "--quiet", "--set", "output.dtm=false")
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(out.with_suffix(".summary.json").read_text())
+    assert [Path(f["path"]).name for f in summary["inputs"]] == ["a.laz", "b.laz"]
+    assert len(laspy.read(out).points) == 8000
+    proc = run_cli("run", str(REPO / "configs" / "ground.yaml"), "--input", str(tiles / "*.ply"),
+                   "--output", str(out), "--backend", "cpu", "--quiet")
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [f"roadx_ti: config error: input.paths = "
+                                                f"'{tiles / '*.ply'}': no file matches the pattern"]
