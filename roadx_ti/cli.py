@@ -360,6 +360,9 @@ def _prepare_output(out: Path, inputs) -> None:
     """Refuse a bad output before any work: an unknown format, an input, an impossible folder."""
     from roadx_ti import io
 
+    from roadx_ti.io.atomic import refuse_folder
+
+    refuse_folder(out)      # before the format test: a folder has no extension to complain of
     if out.suffix.lower() not in io.EXTENSIONS:
         raise UsageError(f"{out}: unknown output format {out.suffix or '(no extension)'!r}; "
                          f"use one of {' '.join(io.EXTENSIONS)}")

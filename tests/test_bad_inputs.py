@@ -332,6 +332,14 @@ def case_output_under_a_file(d):
     return _tiny(d, src, output=d / "out" / "plain" / "result.laz", message="cannot create the output folder")
 
 
+def case_output_is_a_folder(d):
+    """--output naming an existing folder (a file was meant): exit 1, a file name suggested; it
+    was 'unknown output format' for a single input."""
+    src = _ground_laz(d)
+    (d / "out").mkdir()
+    return _tiny(d, src, output=d / "out", message="is a folder, expected an output file name")
+
+
 def case_output_in_proc(d):
     """An output in /proc, where no file can be created even by root: exit 1 with one line; the
     pipeline runs, then the atomic writer cannot create its temporary file."""
@@ -657,6 +665,8 @@ def test_bad_input(name, catalogue):
         assert case.message in line, line
         if case.previous is not None:
             assert case.output.read_bytes() == case.previous
+        elif case.output.is_dir():
+            assert not any(case.output.iterdir())           # a folder given as the output: untouched
         elif case.output.exists() or case.output.is_symlink():
             assert case.output.resolve() in case.hashes     # only 'output is input' cases
         else:

@@ -41,12 +41,18 @@ def fail(path, problem: str) -> InputError:
     return InputError(f"{path}: {problem}")
 
 
+def refuse_folder(output) -> None:
+    """An output path that is an existing folder: one line naming a file to give instead."""
+    out = Path(output)
+    if out.is_dir():
+        raise fail(out, f"is a folder, expected an output file name (e.g. {out / 'result.laz'})")
+
+
 def check_output_path(output, inputs: Iterable = ()) -> Path:
     """Refuse an output that is one of the inputs (same resolved path or same file through a
     link), or whose folder is missing or not writable. Returns the output as a Path."""
     out = Path(output)
-    if out.is_dir():
-        raise fail(out, "is a folder, expected an output file name")
+    refuse_folder(out)
     resolved = out.resolve()
     for given in inputs:
         if given is None or str(given) == "":
