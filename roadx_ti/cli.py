@@ -56,7 +56,8 @@ def _parser() -> argparse.ArgumentParser:
 
     i = sub.add_parser("info", help="CRS, point count, bounds, density and spacing, colour / intensity / "
                        "NIR / returns, classes (JSON; --text for a person)")
-    i.add_argument("path")
+    i.add_argument("path", nargs="+", help="file(s), folder(s) (their point-cloud files, as a catalog "
+                   "takes them) or quoted wildcard patterns; several files: a JSON list")
     i.add_argument("--text", action="store_true", help="print for a person instead of JSON")
 
     s = sub.add_parser("synth", help="write a synthetic scene with truth classes")
@@ -426,24 +427,29 @@ def _make_parent(out: Path) -> None:
         raise DataError(f"{out}: cannot create the output folder: {exc.strerror}") from None
 
 
-def _expand_patterns(paths: list[str]) -> list[str]:
-    """Input paths as given, a wildcard pattern (tiles/*.laz, as PDAL and shells take) replaced by
-    the files it matches in sorted order; a path that is neither is a one-line config error."""
+def _matches(pattern: str) -> list[str] | None:
+    """The files a wildcard pattern (tiles/*.laz, as PDAL and shells take) matches, in sorted
+    order; None when ``pattern`` is an existing path or holds no wildcard."""
     import glob
 
+    if Path(pattern).exists() or not glob.has_magic(pattern):
+        return None
+    return sorted(m for m in glob.glob(pattern) if Path(m).is_file())
+
+
+def _expand_patterns(paths: list[str]) -> list[str]:
+    """Input paths as given, a wildcard pattern replaced by the files it matches; a path that is
+    neither, or a pattern that matches nothing, is a one-line config error."""
     from roadx_ti.config import ConfigError
 
     out = []
     for p in paths:
-        if Path(p).exists():
-            out.append(p)
-        elif glob.has_magic(p):
-            matches = sorted(m for m in glob.glob(p) if Path(m).is_file())
-            if not matches:
-                raise ConfigError(f"config error: input.paths = {p!r}: no file matches the pattern")
-            out.extend(matches)
-        else:
+        matches = _matches(p)
+        if matches is None and not Path(p).exists():
             raise ConfigError(f"config error: input.paths = {p!r}: no such file")
+        if matches == []:
+            raise ConfigError(f"config error: input.paths = {p!r}: no file matches the pattern")
+        out.extend([p] if matches is None else matches)
     return out
 
 
@@ -488,8 +494,20 @@ def cmd_info(args) -> int:
 
     from roadx_ti.io.describe import text
 
-    info = io.info(args.path)
-    print(text(info) if args.text else jsonio.dumps(info, indent=2))
+    from roadx_ti.tiling.catalogs import folder_files
+
+    files = []
+    for given in args.path:
+        matches = _matches(given)
+        if matches == []:
+            raise io.InputError(f"{given}: no file matches the pattern")
+        for path in [given] if matches is None else matches:
+            files.extend(folder_files(Path(path)) if Path(path).is_dir() else [path])
+    infos = [io.info(str(f)) for f in files]
+    if args.text:
+        print("\n\n".join(text(info) for info in infos))
+    else:
+        print(jsonio.dumps(infos[0] if len(infos) == 1 else infos, indent=2))
     return EXIT_OK
 
 

@@ -61,3 +61,21 @@ def test_real_ign_tile_crs_zero_colour_nir_and_returns(shared_data):
     assert sum(c["points"] for c in got["classes"]) == got["point_count"]
     text = run_cli("info", "--text", path).stdout
     assert "EPSG:2154" in text and "RGB fields present, all zero" in text and "NIR        present, all zero" in text
+
+
+def test_several_files_a_folder_and_a_pattern(tmp_path):
+    """info over several paths, a folder (its point-cloud files, as a catalog takes them) or a
+    quoted wildcard pattern: one JSON object per file, in sorted order, as a list; a pattern that
+    matches nothing is one line, exit 1."""
+    rng = np.random.default_rng(1)
+    for name, n in (("b.laz", 300), ("a.las", 200)):
+        xyz = np.column_stack([rng.uniform(0, 10, n) + 1000, rng.uniform(0, 10, n) + 2000, rng.uniform(0, 1, n)])
+        write_las(tmp_path / name, xyz)
+    (tmp_path / "readme.txt").write_text("not points")
+    for given in ([str(tmp_path)], [str(tmp_path / "*.la?")], [str(tmp_path / "a.las"), str(tmp_path / "b.laz")]):
+        listed = info(*given)
+        assert [(d["path"].rsplit("/", 1)[-1], d["point_count"]) for d in listed] == [("a.las", 200), ("b.laz", 300)]
+    assert info(str(tmp_path / "b.*"))["point_count"] == 300           # one file: the object itself
+    proc = run_cli("info", str(tmp_path / "*.ply"))
+    assert proc.returncode == 1
+    assert proc.stderr.strip().splitlines() == [f"roadx_ti: {tmp_path / '*.ply'}: no file matches the pattern"]
