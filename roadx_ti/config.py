@@ -85,6 +85,12 @@ class EvaluateConfig(_Strict):
         None, description="input classes that are the target truth (default: the pipeline's "
         "target class); accuracy is reported when the input has a classification")
 
+    @field_validator("truth_classes", mode="before")
+    @classmethod
+    def _one_class(cls, value):
+        # --set evaluate.truth_classes=6: one class, as the list [6]
+        return [value] if isinstance(value, int) and not isinstance(value, bool) else value
+
 
 PIPELINE_TARGET = {"road": 11, "roof": 6, "ground": 2}
 
@@ -275,13 +281,29 @@ def _stage_options(stages: list, part: str, key: str) -> tuple[str, dict]:
     raise ConfigError(f"--set {key}: no stage {part!r} in this config")
 
 
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """yaml.SafeLoader that refuses a key given twice in one mapping (PyYAML keeps the last one
+    silently: a second 'stages:' pasted below the first would replace it unseen)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise ConfigError(f"key {key!r} given twice (line {key_node.start_mark.line + 1})")
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
 def load(path: str | Path, overrides: list[str] = ()) -> RunConfig:
     """Read, override and validate a YAML config; every mistake raises ConfigError (one line)."""
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"config file {path} does not exist")
     try:
-        raw = yaml.safe_load(path.read_text()) or {}
+        raw = yaml.load(path.read_text(), Loader=_UniqueKeyLoader) or {}
+    except ConfigError as exc:
+        raise ConfigError(f"config file {path}: {exc}") from None
     except yaml.YAMLError as exc:
         where = getattr(exc, "problem_mark", None)
         at = f" at line {where.line + 1}" if where else ""

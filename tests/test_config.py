@@ -24,6 +24,7 @@ def test_good_config_and_overrides():
     assert cfg.seed == 7 and cfg.output.path == "x/y.laz"
     assert cfg.truth_classes == [11]
     assert "grid_slope" in config.dump(cfg)
+    assert config.from_mapping(GOOD, ["evaluate.truth_classes=6"]).truth_classes == [6]   # one class
 
 
 def test_written_config_lists_what_ran_and_runs_the_same(tmp_path):
@@ -83,6 +84,8 @@ def run_cli(*args, cwd=None):
     ("- a\n- b\n", "must hold a mapping"),
     ("pipeline: road\ninput: {paths: [does/not/exist.laz]}\n", "no such file"),
     ("pipeline: road\n", "give input.paths, input.synthetic or --input"),
+    ("pipeline: road\nseed: 1\nseed: 2\n", "key 'seed' given twice (line 3)"),
+    ("pipeline: road\nstages:\n  - sor: {k: 10, k: 12}\n", "key 'k' given twice (line 3)"),
 ])
 def test_cli_config_errors_exit_2(tmp_path, body, expected):
     cfg = tmp_path / "c.yaml"
