@@ -33,7 +33,8 @@ def _parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("run", help="run a pipeline from a YAML config")
     r.add_argument("config", help="YAML config (see configs/)")
-    r.add_argument("--input", nargs="+", metavar="PATH", help="input point cloud(s), folder(s) or quoted wildcard patterns ('tiles/*.laz'), replacing the config's")
+    r.add_argument("--input", nargs="+", metavar="PATH", help="input point cloud(s), folder(s) or quoted "
+                   "wildcard patterns ('tiles/*.laz'), replacing the config's")
     r.add_argument("--output", metavar="PATH", help="output point cloud, replacing the config's")
     r.add_argument("--backend", choices=["auto", "cpu", "vulkan", "cuda", "metal"])
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -360,7 +361,6 @@ def _write_dtm(path: Path, surface, cloud) -> dict:
 def _prepare_output(out: Path, inputs) -> None:
     """Refuse a bad output before any work: an unknown format, an input, an impossible folder."""
     from roadx_ti import io
-
     from roadx_ti.io.atomic import refuse_folder
 
     refuse_folder(out)      # before the format test: a folder has no extension to complain of
@@ -493,7 +493,6 @@ def cmd_info(args) -> int:
     from roadx_ti import io
 
     from roadx_ti.io.describe import text
-
     from roadx_ti.tiling.catalogs import folder_files
 
     files = []
