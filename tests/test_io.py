@@ -417,9 +417,12 @@ def test_text_layouts(tmp_path):
     # a delimiter at the end of every line (some spreadsheet and script exports), values in quotes
     (tmp_path / "trailing.csv").write_text("x,y,z,red,green,blue,\n" + "\n".join(
         f"{p[0]:.3f},{p[1]:.3f},{p[2]:.3f},{c[0]},{c[1]},{c[2]}," for p, c in zip(xyz, rgb)) + "\n")
+    (tmp_path / "trailing_data.csv").write_text("x,y,z,red,green,blue\n" + "\n".join(
+        f"{p[0]:.3f},{p[1]:.3f},{p[2]:.3f},{c[0]},{c[1]},{c[2]}," for p, c in zip(xyz, rgb)) + "\n")
     (tmp_path / "quoted.csv").write_text('"X","Y","Z"\n' + "\n".join(
         f'"{p[0]:.3f}","{p[1]:.3f}","{p[2]:.3f}"' for p in xyz) + "\n")
-    for name in ("plain.xyz", "rgbi.txt", "pdal.csv", "cc.txt", "semicolon.csv", "trailing.csv", "quoted.csv"):
+    for name in ("plain.xyz", "rgbi.txt", "pdal.csv", "cc.txt", "semicolon.csv", "trailing.csv", "trailing_data.csv",
+                 "quoted.csv"):
         cloud = io.read(tmp_path / name)
         assert np.abs(cloud.world_xyz() - xyz).max() < 1e-4, name   # float32 local coordinates
     assert io.read(tmp_path / "plain.xyz").rgb is None
@@ -430,6 +433,7 @@ def test_text_layouts(tmp_path):
     assert np.array_equal(io.read(tmp_path / "cc.txt").rgb, rgb)
     assert np.array_equal(io.read(tmp_path / "semicolon.csv").rgb, rgb)
     assert np.array_equal(io.read(tmp_path / "trailing.csv").rgb, rgb)
+    assert np.array_equal(io.read(tmp_path / "trailing_data.csv").rgb, rgb)
 
 
 def test_zero_points_give_an_empty_cloud(tmp_path):

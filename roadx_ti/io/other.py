@@ -399,12 +399,17 @@ def write_npz(path, cloud: Cloud, classification=None, extra_dims=None, subset=N
 
 def _text_layout(path):
     """(delimiter, column names or None, rows to skip, columns to read or None) from the first
-    lines of a text file. Columns: None for all; a range when lines end in empty fields (a
+    lines of a text file. Columns: None for all; a range when data lines end in empty fields (a
     delimiter at the end of every line, as some spreadsheet and script exports write)."""
-    names, skip, first = None, 0, None
+    names, skip, lines = None, 0, []
     with open(path, "r", encoding="utf-8", errors="replace") as f:
         for line in f:
             stripped = line.strip()
+            if lines:               # the line after a header without comment marker
+                if stripped and not stripped.startswith(("#", "//")):
+                    lines.append(stripped)
+                    break
+                continue
             if not stripped:
                 skip += 1
                 continue
@@ -414,24 +419,25 @@ def _text_layout(path):
                     names = words
                 skip += 1
                 continue
-            first = stripped
-            break
-    if first is None:
+            lines.append(stripped)
+    if not lines:
         return None, names, skip, None
     # commas, semicolons (spreadsheets in locales with a decimal comma write them), else whitespace
-    delimiter = next((d for d in (",", ";") if d in first), None)
-    tokens = [t.strip().strip('"').strip("'") for t in (first.split(delimiter) if delimiter else first.split())]
-    width = len(tokens)
-    while width and not tokens[width - 1]:
-        width -= 1
-    columns = range(width) if width < len(tokens) else None
-    tokens = tokens[:width]
+    delimiter = next((d for d in (",", ";") if d in lines[0]), None)
+
+    def fields(line):
+        tokens = [t.strip().strip('"').strip("'") for t in (line.split(delimiter) if delimiter else line.split())]
+        width = len(tokens)
+        while width and not tokens[width - 1]:
+            width -= 1
+        return tokens[:width], width < len(tokens)
+    tokens, trailing = fields(lines[0])
     try:
         [float(t) for t in tokens]
     except ValueError:   # a header line without comment marker (PDAL writes "X","Y","Z",...)
         names, skip = tokens, skip + 1
-    if names is not None:
-        names = [n for n in names if n] if columns is not None else names
+        tokens, trailing = fields(lines[1]) if len(lines) > 1 else (tokens, trailing)
+    columns = range(len(tokens)) if trailing else None
     return delimiter, names, skip, columns
 
 
