@@ -762,14 +762,23 @@ def _write_buffer(buffers, index, needed, like):
     return buffers[index]
 
 
-def _quantised_steps(steps_up, steps_down, chunk: int = 1 << 16):
-    """int64 (E,) rint(up * STEP_SCALE) + rint(down * STEP_SCALE), a chunk at a time (no
-    full-length float temporaries)."""
+def _step_evidence(steps_up, steps_down):
+    """evidence(index) -> (up, down) float64 for those edges: ``steps_up`` itself when it is such a
+    function (``steps_down`` None), else a view of the two arrays."""
+    if callable(steps_up):
+        return steps_up
     up, down = np.asarray(steps_up, np.float64), np.asarray(steps_down, np.float64)
-    out = np.empty(len(up), np.int64)
-    for start in range(0, len(up), chunk):
-        part = slice(start, start + chunk)
-        out[part] = np.rint(up[part] * STEP_SCALE).astype(np.int64) + np.rint(down[part] * STEP_SCALE).astype(np.int64)
+    return lambda index: (up[index], down[index])
+
+
+def _quantised_steps(evidence, n_edges: int, chunk: int = 1 << 20):
+    """int64 (E,) rint(up * STEP_SCALE) + rint(down * STEP_SCALE), a chunk of edges at a time
+    (float temporaries of one chunk only; large enough that the evidence function's own
+    threading pays)."""
+    out = np.empty(n_edges, np.int64)
+    for start in range(0, n_edges, chunk):
+        up, down = evidence(slice(start, min(start + chunk, n_edges)))
+        out[start:start + len(up)] = np.rint(up * STEP_SCALE).astype(np.int64) + np.rint(down * STEP_SCALE).astype(np.int64)
     return out
 
 
@@ -786,7 +795,10 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
     """Agglomerate points into regions (see the module docstring) and return a RegionGraph.
 
     ea, eb: int (E,) graph edges; steps_up / steps_down: float (E,) probability that the edge
-    steps up from a to b (b to a) by a kerb; colour: float (n, 3); levels: ascending colour
+    steps up from a to b (b to a) by a kerb, or steps_up a function of an edge index (a slice or
+    an index array) returning both for those edges and steps_down None: the caller then holds
+    neither full float64 array through the rounds (it is called once over all edges, a chunk at
+    a time, and once for the edges between the final regions); colour: float (n, 3); levels: ascending colour
     thresholds (colour units) of the schedule: a pair merges at a level when its mean colours
     differ by at most the level, their chroma (colour minus grey) by at most
     ``max_chroma_step``, and the step probabilities of its boundary edges sum to at most
@@ -800,7 +812,8 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
     col = np.ascontiguousarray(colour, np.float32)
     a32 = np.ascontiguousarray(ea, np.int32)
     b32 = np.ascontiguousarray(eb, np.int32)
-    up_q = _quantised_steps(steps_up, steps_down)
+    evidence = _step_evidence(steps_up, steps_down)
+    up_q = _quantised_steps(evidence, len(a32))
     host = (not _native_int64_atomics()) if host is None else bool(host)
     if host:
         label = np.arange(n, dtype=np.int64)
@@ -850,11 +863,10 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
     label, count, csum = np.asarray(to_numpy(label)).astype(np.int64), to_numpy(count), to_numpy(csum)
     # the rounds' pair lists and table go before the final pair table is built
     state = buffers = live = up_q = None
-    return _region_graph(label, count, csum, a32, b32, np.asarray(steps_up, np.float64),
-                         np.asarray(steps_down, np.float64))
+    return _region_graph(label, count, csum, a32, b32, evidence)
 
 
-def _region_graph(label, count, csum, ea, eb, up, down):
+def _region_graph(label, count, csum, ea, eb, evidence):
     """Compact region ids 0..R-1 in order of each region's first point (so that equal partitions
     get equal ids, whichever point a backend's merges left as the root) and the final pair table."""
     roots, first, compact = np.unique(label, return_index=True, return_inverse=True)
@@ -864,8 +876,9 @@ def _region_graph(label, count, csum, ea, eb, up, down):
     compact = rank[compact.ravel()]
     roots = roots[order]
     la, lb = compact[ea], compact[eb]
-    cross = la != lb
-    pa, pb, m, u, d = pair_table(la[cross], lb[cross], np.ones(int(cross.sum())), up[cross], down[cross],
-                                 max(len(roots), 1))
+    cross = np.flatnonzero(la != lb)
+    la, lb = la[cross], lb[cross]
+    up, down = evidence(cross)
+    pa, pb, m, u, d = pair_table(la, lb, np.ones(len(cross)), up, down, max(len(roots), 1))
     return RegionGraph(compact, count[roots].astype(np.float64),
                        csum[roots].astype(np.float64) / COLOUR_SCALE, pa, pb, m, u, d)

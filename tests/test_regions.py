@@ -149,6 +149,25 @@ def test_region_merging_host_rounds_equal_the_kernel_rounds(seed):
     assert device.n_regions < n / 5
 
 
+@pytest.mark.parametrize("host", [False, True])
+def test_region_merging_takes_the_kerb_evidence_as_a_function(host):
+    """The stage hands the kerb probabilities over as a function of edge indices (no two full
+    float64 arrays through the rounds): the same regions and pair table as with the arrays."""
+    n, a, b, up, down, colour = _merge_case(1, n=3000)
+    up = up * np.linspace(0.2, 1.0, len(a))            # distinct values per edge
+    calls = []
+
+    def evidence(index):
+        calls.append(index)
+        return up[index], down[index]
+    args = (colour, (1.5, 3.0, 6.0), 10.0, 0.1, 6)
+    arrays = regions.merge_regions_by_colour(n, a, b, up, down, *args, host=host)
+    function = regions.merge_regions_by_colour(n, a, b, evidence, None, *args, host=host)
+    for name in ("label", "count", "colour_sum", "pa", "pb", "edges", "up", "down"):
+        assert np.array_equal(getattr(arrays, name), getattr(function, name)), name
+    assert len(calls) >= 2 and isinstance(calls[-1], np.ndarray)   # chunks, then the final cross edges
+
+
 def test_region_merging_respects_the_step_veto():
     n, a, b, up, down, colour = _merge_case(0)
     colour[:] = 100.0                                  # one colour everywhere: only steps separate

@@ -150,13 +150,17 @@ class RoadRegions(Stage):
         filtered = regions.mode_heights(xyz, neighbours, gradient, o.filter_width * height_noise)
         steps = regions.edge_steps(xyz, filtered, gradient, ea, eb)
         step_sigma = MAD_TO_SIGMA * float(np.median(np.abs(steps)))
-        up, down = kerb_evidence(steps, step_sigma, o.kerb_min, o.kerb_max, o.kerb_prior)
+        # the kerb probabilities per edge, evaluated where the merge needs them (elementwise, so
+        # the same values): two full float64 arrays held through its rounds were 400 MB at 16 M
+        def evidence(index):
+            return kerb_evidence(steps[index], step_sigma, o.kerb_min, o.kerb_max, o.kerb_prior)
         colour_f = regions.neighbourhood_median(colour, neighbours)
         grey = colour_f.mean(axis=1)
         colour_noise = o.colour_noise or max(MAD_TO_SIGMA * float(np.median(np.abs(grey[eb] - grey[ea]))) / np.sqrt(2.0), 0.5)
         levels = [colour_noise * f for f in o.colour_levels]
-        graph = regions.merge_regions_by_colour(n, ea, eb, up, down, colour_f, levels, o.max_chroma_step,
+        graph = regions.merge_regions_by_colour(n, ea, eb, evidence, None, colour_f, levels, o.max_chroma_step,
                                                 o.step_veto, o.min_region_points, settle=o.settle)
+        del evidence, steps
         density = plan_density(xyz[:, :2])
         weights = Weights(**o.weights)
         centroid = None
