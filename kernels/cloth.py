@@ -42,7 +42,7 @@ import math
 import numpy as np
 from .taichi_compat import cpu_threads, ti
 
-from .common import (as_ndarray, f32_order_key, f32_from_order_key, host_memory_backend,
+from .common import (as_ndarray, cpu_block_dim, f32_order_key, f32_from_order_key, host_memory_backend,
                      kernel_array, length, ndarray, to_numpy)
 
 DAMPING = 0.01
@@ -241,18 +241,12 @@ def _fill_from_neighbours(cell_point: ti.types.ndarray(dtype=ti.i32, ndim=1),
 
 
 # ---------------------------------------------------------------- simulation
-# Every loop over the cloth runs over bands of BAND_ROWS rows, one thread per band
-# (block_dim 1: the CPU backend would otherwise give a few bands to one thread), and within a
-# band over its list of active particles in particle order. A particle is active while it or one
+# Every loop over the cloth runs over bands of BAND_ROWS rows, one thread per band (block_dim 1
+# on the CPU, which would otherwise give a few bands to one thread; GPUs keep their default:
+# Vulkan refuses blocks of one), and within a band over its list of active particles in particle
+# order. A particle is active while it or one
 # of its 16 neighbours is movable: only then does its constraint pass change anything. The lists
 # shrink as the cloth settles, so late iterations cost what is still moving, not the cloth size.
-
-def _threads_per_band_block():
-    """Loop block size of the loops over bands, evaluated when a kernel compiles: 1 on the CPU,
-    whose default blocks would give several bands to one thread; the default elsewhere
-    (Vulkan refuses blocks of one)."""
-    return 1 if host_memory_backend() else None
-
 
 @ti.func
 def _band_row_range(b, rows, band_rows, band_shift) -> ti.math.ivec2:
@@ -431,7 +425,7 @@ def _refresh_active(movable: ti.types.ndarray(dtype=ti.i32, ndim=1),
                     band_list: ti.types.ndarray(dtype=ti.i32, ndim=1),
                     band_count: ti.types.ndarray(dtype=ti.i32, ndim=1),
                     width: ti.i32, rows: ti.i32, band_rows: ti.i32, band_shift: ti.i32):
-    ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
+    ti.loop_config(block_dim=ti.static(cpu_block_dim(1)))
     for b in band_count:
         _refresh_band(b, movable, band_list, band_count, width, rows, band_rows, band_shift)
 
@@ -451,22 +445,22 @@ def _iterate(pos: ti.types.ndarray(dtype=ti.f32, ndim=1),
     # (the bands of even world index, they touch disjoint rows, then the odd ones), largest
     # displacement and
     # collision, stop test; nothing once stopped
-    ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
+    ti.loop_config(block_dim=ti.static(cpu_block_dim(1)))
     for b in range(bands):
         if state[0] == 0:
             _verlet_band(b, pos, old_pos, movable, band_list, band_count, width, rows, band_rows,
                          band_shift, acceleration)
-    ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
+    ti.loop_config(block_dim=ti.static(cpu_block_dim(1)))
     for t in range(_even_bands(bands, band_phase)):
         if state[0] == 0:
             _sweep_band(2 * t + band_phase, pos, movable, band_list, band_count, width, rows,
                         band_rows, band_shift, moves)
-    ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
+    ti.loop_config(block_dim=ti.static(cpu_block_dim(1)))
     for t in range(bands - _even_bands(bands, band_phase)):
         if state[0] == 0:
             _sweep_band(2 * t + 1 - band_phase, pos, movable, band_list, band_count, width, rows,
                         band_rows, band_shift, moves)
-    ti.loop_config(block_dim=ti.static(_threads_per_band_block()))
+    ti.loop_config(block_dim=ti.static(cpu_block_dim(1)))
     for b in range(bands):
         if state[0] == 0:
             _collide_band(b, pos, old_pos, movable, height, band_list, band_count, band_max,

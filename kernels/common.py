@@ -55,6 +55,14 @@ def host_memory_backend() -> bool:
     return current_arch() in CPU_ARCHS
 
 
+def cpu_block_dim(iterations: int):
+    """``ti.loop_config(block_dim=ti.static(cpu_block_dim(n)))``: on the CPU, where block_dim is
+    the iterations one thread takes at a time, ``n``; on GPUs, where it is threads per block
+    (CUDA allows at most 1024, Vulkan refuses some sizes), Taichi's default. Evaluated when the
+    kernel compiles, so one kernel serves every arch."""
+    return iterations if host_memory_backend() else None
+
+
 def kernel_array(a, dtype=None):
     """An input array as a kernel argument: ndarrays as they are; numpy arrays in place on the
     CPU backend (converted only when not contiguous or not of ``dtype``), else copied into an

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from .taichi_compat import runtime_program, ti
 
-from .common import INT32_MAX, f32_order_key, is_ndarray, kernel_array, length, ndarray
+from .common import INT32_MAX, cpu_block_dim, f32_order_key, is_ndarray, kernel_array, length, ndarray
 from .scan import exclusive_scan_into
 
 # Large primes of the classic spatial hash (Teschner et al. 2003).
@@ -161,7 +161,7 @@ def _sort_buckets(start: ti.types.ndarray(dtype=ti.i32, ndim=1), order: ti.types
                   n_buckets: ti.i32):
     # Shell sort of each bucket by (cell, index), moving the coordinates along: in place,
     # O(m^1.3), fine for the occasional bucket of thousands (duplicated points, coarse voxels).
-    ti.loop_config(block_dim=4096)
+    ti.loop_config(block_dim=ti.static(cpu_block_dim(4096)))
     for b in range(n_buckets):
         lo = start[b]
         m = start[b + 1] - lo
