@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# The GPU machine's run: `python -m roadx_ti bench` on CUDA at 1 M and 4 M (offline cache fresh,
+# then warm) and 16 M, and the road and roof CLIs on one scene on the CPU and on CUDA with their
+# labels compared point by point (agreement.py). Run from the repository root:
+#     bash benchmarks/device/run.sh OUTDIR
+# On a machine without the project installed, wheels in .whl/ (if present) go to /tmp/site and the
+# checkout is used as the package (roadx_ti.kernels is kernels/, as pyproject.toml maps it).
+# Each step has its own time limit, within SECONDS_TOTAL (default 450) for the whole script, so that
+# what finished is written even when a later step is cut.
+set -uo pipefail
+out=${1:?usage: run.sh OUTDIR}
+total=${SECONDS_TOTAL:-450}
+mkdir -p "$out"
+exec > >(tee -a "$out/device.log") 2>&1
+export PYTHONUNBUFFERED=1 PYTHONWARNINGS=ignore
+if [ -d .whl ]; then
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl || exit 1
+  export PYTHONPATH=/tmp/site:$PWD
+fi
+python3 -c 'import roadx_ti.kernels' 2>/dev/null || { ln -sfn ../kernels roadx_ti/kernels; export PYTHONPATH=${PYTHONPATH:-}:$PWD; }
+start=$SECONDS
+stamp() { echo "== $(date -u +%H:%M:%S) +$((SECONDS - start)) s: $*"; }
+left() { echo $((total - (SECONDS - start))); }
+cap() { local l; l=$(left); echo $(( l < $1 ? l : $1 )); }   # seconds: the smaller of $1 and what is left
+stamp "machine"; nvidia-smi --query-gpu=name,driver_version,memory.total,compute_cap --format=csv; nproc; python3 -V
+stamp "cuda sanity"
+python3 - <<'PY' || { stamp "CUDA backend unavailable: stopping"; exit 3; }
+from roadx_ti import backend
+print("arch:", backend.init("cuda"))
+PY
+bench() { python3 -m roadx_ti bench --backends cuda --impls roadx_ti --budget 0.5 --rounds 1 --out "$out" \
+          --results /tmp/roadx_results.md --plot /tmp/roadx_plot.png "$@"; }
+stamp "bench 1M,4M"; bench --sizes 1M,4M --cache fresh --timeout "$(cap 110)"
+stamp "agreement 1M cpu/cuda"
+timeout "$(cap 100)" python3 benchmarks/device/agreement.py --points 1M --backends cpu,cuda --out "$out/agreement-1M.json"
+# 16 M: the stages the CPU rows have at that size, the kernels of the road pipeline, and the pipeline
+stamp "bench 16M"; bench --sizes 16M --cache default --timeout "$(( $(left) - 25 ))" \
+  --stages voxel_hash,knn,voxel_downsample,sor,normals,ransac,grid_min,csf,road_pipeline
+stamp "done"
