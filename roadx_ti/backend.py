@@ -113,6 +113,29 @@ def init(backend: str = "auto", *, threads: int | None = None, debug: bool = Fal
                        f"(tried {', '.join(candidates)})")
 
 
+@contextlib.contextmanager
+def collect_in_this_thread():
+    """For work that makes Taichi ndarrays on a GPU arch in a thread other than the main one (a
+    Dask worker runs its tasks in a pool thread and its event loop in the main thread): the cyclic
+    garbage collector is paused for the block and run in this thread at its end. A collection runs
+    in whichever thread crosses the allocation threshold, and an ndarray freed on a thread without
+    the CUDA context aborts the process (CUDA_ERROR_INVALID_CONTEXT in cuMemFreeAsync, seen on an
+    H200). A no-op on the CPU and in the main thread."""
+    import gc
+    import threading
+
+    from roadx_ti.chunks import cyclic_gc_paused
+
+    if current_arch() in ("", "cpu") or threading.current_thread() is threading.main_thread():
+        yield
+        return
+    with cyclic_gc_paused():
+        try:
+            yield
+        finally:
+            gc.collect()
+
+
 def reset() -> None:
     """Tear the runtime down (tests switching arch use this; pipelines never do)."""
     ti.reset()

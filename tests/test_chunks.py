@@ -55,3 +55,39 @@ def test_gc_pause_nests_and_restores_the_callers_setting():
         assert not gc.isenabled()     # a host that turned it off keeps it off
     finally:
         gc.enable()
+
+
+def test_gpu_work_off_the_main_thread_collects_in_its_own_thread(monkeypatch):
+    # A Dask worker's task thread on CUDA: collections wait for the block's end and run there,
+    # not in the worker's event loop thread (which has no CUDA context).
+    from roadx_ti import backend
+
+    monkeypatch.setattr(backend, "current_arch", lambda: "cuda")
+    seen = {}
+
+    def record(phase, info):
+        if phase == "start":
+            seen.setdefault("threads", set()).add(threading.get_ident())
+
+    def task():
+        seen["task"] = threading.get_ident()
+        with backend.collect_in_this_thread():
+            seen["enabled_inside"] = gc.isenabled()
+            a = []
+            a.append(a)              # cyclic garbage left for the collection at the block's end
+            del a
+            seen["threads"] = set()
+        seen["enabled_after"] = gc.isenabled()
+
+    gc.callbacks.append(record)
+    try:
+        worker = threading.Thread(target=task)
+        worker.start()
+        worker.join()
+    finally:
+        gc.callbacks.remove(record)
+    assert seen["enabled_inside"] is False and seen["enabled_after"] is True
+    assert seen["task"] in seen["threads"]            # the block's end collected, in the task thread
+
+    with backend.collect_in_this_thread():            # the main thread: nothing changes
+        assert gc.isenabled()

@@ -150,7 +150,8 @@ def run_tile(job: TileJob) -> TileResult:
     ctx.facts[SURVEY_POINTS] = job.survey_points
     if job.survey_estimates is not None:
         ctx.facts[ESTIMATES] = dict(job.survey_estimates)   # every tile the survey's values
-    labels = pipelines.run(cloud, pipelines.build_stages(job.stage_specs), ctx=ctx)
+    with backend.collect_in_this_thread():     # a Dask worker's task thread on a GPU
+        labels = pipelines.run(cloud, pipelines.build_stages(job.stage_specs), ctx=ctx)
     result.pipeline_seconds = time.perf_counter() - t0
     result.stages = [{k: r[k] for k in ("stage", "points_in", "points_out", "seconds")} for r in labels.stages]
     n = cloud.n
