@@ -5,6 +5,8 @@
 #     bash benchmarks/device/run.sh OUTDIR
 # On a machine without the project installed, wheels in .whl/ (if present) go to /tmp/site and the
 # checkout is used as the package (roadx_ti.kernels is kernels/, as pyproject.toml maps it).
+# With TESTS=1 the kernel tests (pytest -m kernel) run on CUDA first (not yet run there: ~130 tests,
+# 18 s on this repository's CPU backend without the packages the device lacks).
 # Each step has its own time limit, within SECONDS_TOTAL (default 450) for the whole script, so that
 # what finished is written even when a later step is cut.
 set -uo pipefail
@@ -30,6 +32,11 @@ print("arch:", backend.init("cuda"))
 PY
 bench() { python3 -m roadx_ti bench --backends cuda --impls roadx_ti --budget 0.5 --rounds 1 --out "$out" \
           --results /tmp/roadx_results.md --plot /tmp/roadx_plot.png "$@"; }
+if [ "${TESTS:-0}" = 1 ]; then
+  stamp "kernel tests on CUDA"
+  ROADX_TI_TEST_BACKENDS=cuda timeout "$(cap 200)" python3 -m pytest -q -m kernel -p no:cacheprovider \
+    --continue-on-collection-errors --junitxml="$out/kernel-tests-cuda.xml" 2>&1 | tail -25
+fi
 stamp "bench 1M,4M"; bench --sizes 1M,4M --cache fresh --timeout "$(cap 110)"
 stamp "agreement 1M cpu/cuda"
 timeout "$(cap 100)" python3 benchmarks/device/agreement.py --points 1M --backends cpu,cuda --out "$out/agreement-1M.json"
