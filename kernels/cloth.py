@@ -244,9 +244,9 @@ def _fill_from_neighbours(cell_point: ti.types.ndarray(dtype=ti.i32, ndim=1),
 # Every loop over the cloth runs over bands of BAND_ROWS rows, one thread per band (block_dim 1
 # on the CPU, which would otherwise give a few bands to one thread; GPUs keep their default:
 # Vulkan refuses blocks of one), and within a band over its list of active particles in particle
-# order. A particle is active while it or one
-# of its 16 neighbours is movable: only then does its constraint pass change anything. The lists
-# shrink as the cloth settles, so late iterations cost what is still moving, not the cloth size.
+# order. A particle is active while it or one of its 16 neighbours is movable: only then does its
+# constraint pass change anything. The lists shrink as the cloth settles, so late iterations cost
+# what is still moving, not the cloth size.
 
 @ti.func
 def _band_row_range(b, rows, band_rows, band_shift) -> ti.math.ivec2:
