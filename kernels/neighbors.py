@@ -33,7 +33,7 @@ Kernels for k <= SMALL_K, each keeping an ascending list of the k best in regist
 import numpy as np
 from .taichi_compat import ti
 
-from .common import host_memory_backend, kernel_array, length, like_input, ndarray, output_array
+from .common import cpu_block_dim, host_memory_backend, kernel_array, length, like_input, ndarray, output_array
 from .grid import Grid, build_grid, build_grid_into, cell_hash, cell_of, compact_mask, scratch
 from .scan import exclusive_scan_into
 
@@ -271,7 +271,7 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
     candidates from them. A point whose k-th is not inside the cube's safe radius adds the cells of the second
     ring that its k-th can reach; if that does not settle it either, it is marked in ``pending``
     (indexed by sorted position) for the ring-growing kernel."""
-    ti.loop_config(block_dim=_CPU_GRAIN)
+    ti.loop_config(block_dim=ti.static(cpu_block_dim(_CPU_GRAIN)))
     for ci in range(cell_start.shape[0] - 1):
         a = cell_start[ci]
         b = cell_start[ci + 1]

@@ -120,7 +120,11 @@ def collect_in_this_thread():
     garbage collector is paused for the block and run in this thread at its end. A collection runs
     in whichever thread crosses the allocation threshold, and an ndarray freed on a thread without
     the CUDA context aborts the process (CUDA_ERROR_INVALID_CONTEXT in cuMemFreeAsync, seen on an
-    H200). A no-op on the CPU and in the main thread."""
+    H200). A no-op on the CPU and in the main thread. Limits: an explicit ``gc.collect()`` in
+    another thread still runs (Dask's memory manager calls one when a worker nears its memory
+    limit), and only the thread that started Taichi holds the context, so a worker with several
+    task threads (an external ``dask worker`` with its default threads) is not covered; the local
+    cluster roadx_ti starts has one thread per worker."""
     import gc
     import threading
 

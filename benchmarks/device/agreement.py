@@ -59,6 +59,8 @@ def main() -> int:
     args = p.parse_args()
     points = parse_point_count(args.points)
     backends = args.backends.split(",")
+    if len(backends) != 2:
+        p.error(f"--backends takes two backends to compare, got {args.backends!r}")
     args.work.mkdir(parents=True, exist_ok=True)
     report = {"points": points, "seed": args.seed, "backends": backends, "pipelines": {}}
     for pipeline in args.pipelines.split(","):
