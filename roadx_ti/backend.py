@@ -7,11 +7,13 @@ A host program that already called ``ti.init`` keeps its runtime: ``init`` then 
 from __future__ import annotations
 
 import contextlib
+import gc
 import glob
 import io
 import logging
 import os
 import sys
+import threading
 
 from roadx_ti.kernels import taichi_compat
 from roadx_ti.kernels.taichi_compat import ti
@@ -125,9 +127,6 @@ def collect_in_this_thread():
     limit), and only the thread that started Taichi holds the context, so a worker with several
     task threads (an external ``dask worker`` with its default threads) is not covered; the local
     cluster roadx_ti starts has one thread per worker."""
-    import gc
-    import threading
-
     from roadx_ti.chunks import cyclic_gc_paused
 
     if current_arch() in ("", "cpu") or threading.current_thread() is threading.main_thread():

@@ -2,6 +2,7 @@
 import gc
 import os
 import threading
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -18,15 +19,24 @@ def test_over_chunks_covers_every_element_once():
     assert (hits == 1).all()
 
 
-def test_no_cyclic_collection_runs_in_a_pool_thread(monkeypatch):
-    # A collection in a pool thread can free a Taichi ndarray held in a cycle, and on CUDA that
-    # thread has no device context (the free aborts the process): collections stay in the caller.
-    collecting_threads = []
+@contextmanager
+def collecting_threads():
+    """The set of thread idents in which a cyclic collection starts inside the block."""
+    threads = set()
 
     def record(phase, info):
         if phase == "start":
-            collecting_threads.append(threading.get_ident())
+            threads.add(threading.get_ident())
+    gc.callbacks.append(record)
+    try:
+        yield threads
+    finally:
+        gc.callbacks.remove(record)
 
+
+def test_no_cyclic_collection_runs_in_a_pool_thread(monkeypatch):
+    # A collection in a pool thread can free a Taichi ndarray held in a cycle, and on CUDA that
+    # thread has no device context (the free aborts the process): collections stay in the caller.
     def part(start, stop):
         for _ in range(20_000):       # cycles, many times gen0's threshold per chunk
             a = []
@@ -34,12 +44,9 @@ def test_no_cyclic_collection_runs_in_a_pool_thread(monkeypatch):
 
     monkeypatch.setattr(os, "cpu_count", lambda: 4)     # a pool even on a one-core machine
     assert gc.isenabled()
-    gc.callbacks.append(record)
-    try:
+    with collecting_threads() as threads:
         over_chunks(part, 12 * CHUNK)
-    finally:
-        gc.callbacks.remove(record)
-    assert set(collecting_threads) <= {threading.get_ident()}
+    assert set(threads) <= {threading.get_ident()}
     assert gc.isenabled()
 
 
@@ -67,10 +74,6 @@ def test_gpu_work_off_the_main_thread_collects_in_its_own_thread(monkeypatch):
     monkeypatch.setattr(backend, "current_arch", lambda: "cuda")
     seen = {}
 
-    def record(phase, info):
-        if phase == "start":
-            seen.setdefault("threads", set()).add(threading.get_ident())
-
     def task():
         seen["task"] = threading.get_ident()
         with backend.collect_in_this_thread():
@@ -78,16 +81,14 @@ def test_gpu_work_off_the_main_thread_collects_in_its_own_thread(monkeypatch):
             a = []
             a.append(a)              # cyclic garbage left for the collection at the block's end
             del a
-            seen["threads"] = set()
+            threads.clear()          # only the collections from here on
         seen["enabled_after"] = gc.isenabled()
 
-    gc.callbacks.append(record)
-    try:
+    with collecting_threads() as threads:
         worker = threading.Thread(target=task)
         worker.start()
         worker.join()
-    finally:
-        gc.callbacks.remove(record)
+    seen["threads"] = threads
     assert seen["enabled_inside"] is False and seen["enabled_after"] is True
     assert seen["task"] in seen["threads"]            # the block's end collected, in the task thread
 
