@@ -182,3 +182,39 @@ def test_region_merging_respects_the_step_veto():
         members = side[graph.label == r]
         assert members.all() or not members.any()
     assert left.any()
+
+
+def test_points_above_the_road_surface_leave_the_road(ti_arch):
+    """road_regions' surface test: on a sloped, noisy road (3 cm) the skirt of a parked car (points
+    0.1-0.3 m above the road along the car's sides, as a photogrammetric cloud smears them) leaves
+    the road and no road point within the noise does; the result does not depend on point order."""
+    from roadx_ti.stages.road_regions import above_road_surface
+
+    rng = np.random.default_rng(3)
+    noise = 0.03
+    road = _plane(12000, noise=noise, seed=5)
+    # a car of 2 x 4.5 m at (8..10, 6..10.5): no road under it, its lowest 0.3 m along the outline
+    # (its sides: a steep surface, about 10 points per metre where the road has 30 per m2)
+    under = (road[:, 0] > 8) & (road[:, 0] < 10) & (road[:, 1] > 6) & (road[:, 1] < 10.5)
+    road = road[~under]
+    m = 130
+    t = rng.random(m)
+    outline = np.where(t[:, None] < 0.5, np.column_stack([np.where(t < 0.25, 8.0, 10.0), 6 + 4.5 * rng.random(m)]),
+                       np.column_stack([8 + 2 * rng.random(m), np.where(t < 0.75, 6.0, 10.5)]))
+    outline += rng.normal(0, 0.03, (m, 2))
+    lift = 0.1 + 0.2 * rng.random(m)
+    skirt = np.column_stack([outline, 0.02 * outline[:, 0] + 0.01 * outline[:, 1] + lift]).astype(np.float32)
+    xyz = np.concatenate([road, skirt])
+    gradient = regions.coarse_gradient(xyz, 2.5)
+    is_road = np.ones(len(xyz), bool)
+    kept, removed = above_road_surface(xyz, gradient, is_road, 32, 4 * noise)
+    on_road = np.arange(len(xyz)) < len(road)
+    residual = (xyz[:, 2] - 0.02 * xyz[:, 0] - 0.01 * xyz[:, 1]) / noise
+    assert kept[on_road & (residual < 3.0)].all()          # nothing within the noise goes
+    assert (~kept[on_road]).sum() <= 5                     # (Gaussian tails beyond 4 sigma may)
+    high = lift > 1.5 * 4 * noise                          # most of the skirt clearly above it does (the
+    assert np.mean(~kept[~on_road][high]) >= 0.8           # skirt's own points lift a corner's median)
+    assert removed == int((~kept).sum())
+    order = rng.permutation(len(xyz))
+    again, _ = above_road_surface(xyz[order], regions.coarse_gradient(xyz[order], 2.5), is_road, 32, 4 * noise)
+    assert (again == kept[order]).all()

@@ -15,6 +15,10 @@ cloud itself:
    its colour: an exact minimum cut over the region graph with kerb terms (a kerb's upper side
    is not road), contrast-sensitive smoothness, and a colour term learnt from the two sides of
    the scene's own clear kerbs.
+3. **Surface test**: road points that stand out above the road's local surface (the median
+   slope-corrected height of their nearest road points in plan) by more than a few measured
+   height-noise sigmas are not road surface: the lowest parts of parked cars (within the
+   cloth's class threshold of the road), kerb faces, debris.
 
 Colour source: RGB (8-bit units), else LiDAR intensity as a grey (scaled to 8-bit units by its
 99th percentile), else geometry only (kerbs and smoothness decide).
@@ -58,6 +62,12 @@ class RoadRegionsOptions(StageOptions):
     min_region_points: int = Field(8, ge=1, description="smaller regions join their best neighbour")
     boundary_passes: int = Field(2, ge=0, le=5, description="passes of the boundary height vote "
                                  "(kernels.regions.boundary_vote) after the road is chosen")
+    surface_tol: float = Field(4.0, ge=0, description="a road point standing more than this many measured "
+                               "height-noise sigmas (at least kerb_min) above the median slope-corrected "
+                               "height of its surface_k nearest road points in plan is not road surface: the "
+                               "skirts of cars, kerb faces, debris (0: off)")
+    surface_k: int = Field(32, ge=4, le=MAX_ROW - 1, description="road points in plan that the surface "
+                           "test takes the road's local height from")
     settle: float = Field(0.005, gt=0, lt=1, description="a merging level ends when a round joins fewer "
                           "than this share of the regions left (the rest is a thin tail)")
     height_noise: float | None = Field(None, gt=0, description="height noise (m); None: measured")
@@ -102,6 +112,29 @@ def kerb_evidence(steps, sigma, kerb_min, kerb_max, prior):
         down[start:stop] = c / total
     over_chunks(part, len(r))
     return up, down
+
+
+def above_road_surface(xyz, gradient, is_road, k: int, tolerance: float):
+    """(road, count): ``is_road`` without the road points that stand more than ``tolerance`` above
+    the road's local surface, the median slope-corrected height of themselves and their ``k``
+    nearest road points in plan (kernels regions.mode_heights with no mode steps). Cars stand on
+    the road and their lowest parts, within the cloth's class threshold of it, joined its regions;
+    a median over a plan neighbourhood wider than a car's skirt is the road's own height."""
+    from roadx_ti.kernels import regions
+    from roadx_ti.kernels.neighbors import knn
+
+    road = np.flatnonzero(is_road)
+    k = min(k, len(road) - 1)
+    if k < 3:
+        return is_road, 0
+    part = np.ascontiguousarray(xyz[road])
+    flat = np.ascontiguousarray(np.column_stack([part[:, :2], np.zeros(len(part), np.float32)]))
+    neighbours = knn(flat, k)[0]
+    local = regions.mode_heights(part, neighbours, np.ascontiguousarray(gradient[road]), 0.0, steps=0)
+    above = part[:, 2] - np.asarray(local) > np.float32(tolerance)
+    out = is_road.copy()
+    out[road[above]] = False
+    return out, int(above.sum())
 
 
 def plan_density(xy: np.ndarray, cell: float = 0.5) -> float:
@@ -174,6 +207,10 @@ class RoadRegions(Stage):
             # the road's edge on the kerb itself: boundary points go to the side of their height
             is_road = regions.boundary_vote(xyz, neighbours, gradient, is_road.astype(np.uint8),
                                             max(0.5 * o.kerb_min, 2.0 * step_sigma)).astype(bool)
+        off_surface = 0
+        if o.surface_tol > 0:
+            is_road, off_surface = above_road_surface(xyz, gradient, is_road, o.surface_k,
+                                                      max(o.kerb_min, o.surface_tol * height_noise))
         labels = np.where(is_road, CLASS_ROAD, CLASS_OTHER).astype(np.uint8)
         # plain floats: the log line and the summary JSON show numbers, not numpy reprs
         estimates = {"point_spacing_m": round(float(spacing), 4), "density_per_m2": round(float(density), 2),
@@ -182,4 +219,4 @@ class RoadRegions(Stage):
         ctx.log.info("road_regions: %s colour, estimates %s", source, estimates)
         return StageResult(labels=labels, segment_id=graph.label.astype(np.int32),
                            info={"color_source": source, "estimates": estimates, **facts,
-                                 "target_points": int(is_road.sum())})
+                                 "off_surface_points": int(off_surface), "target_points": int(is_road.sum())})
