@@ -105,3 +105,12 @@ def test_cli_missing_config_and_usage(tmp_path):
     assert proc.returncode == 2
     proc = run_cli("--version")
     assert proc.returncode == 0 and "roadx_ti" in proc.stdout
+
+
+def test_the_demo_runs_the_stages_of_road_uav():
+    """configs/demo.yaml says it runs road_uav.yaml's stages: the resolved stage lists are equal."""
+    from tests.conftest import REPO
+
+    demo = config.load(REPO / "configs" / "demo.yaml").stage_list()
+    road = config.load(REPO / "configs" / "road_uav.yaml").stage_list()
+    assert [(n, o.model_dump()) for n, o in demo] == [(n, o.model_dump()) for n, o in road]

@@ -138,3 +138,33 @@ def test_stage_removes_walls_and_roofs_keeps_ground():
     # deterministic: the same labels on a second run
     again = stage.run(Cloud(xyz=xyz, origin=np.zeros(3)), StageContext(seed=0))
     np.testing.assert_array_equal(result.keep, again.keep)
+
+
+@pytest.mark.parametrize("xy_removal", ["plane", "point"])
+def test_a_roof_plane_takes_no_road_uphill_with_point_removal(xy_removal):
+    """A flat roof 3 m above a street that climbs 8 %: the roof plane's slab (+-0.1 m) also crosses
+    the street about 37 m uphill. xy_removal 'plane' (METHODS.md R3 literally) removes that band
+    of road with the roof; 'point' removes only the inliers that stand above dh_max: the roof."""
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.planes import RansacPlanes
+
+    rng = np.random.default_rng(11)
+    street = np.column_stack([rng.random(60_000) * 60, rng.random(60_000) * 12, np.zeros(60_000)])
+    street[:, 2] = 0.08 * street[:, 0] + rng.normal(0, 0.02, len(street))
+    # denser than the street, so that its plane is found first (the street is not yet matched)
+    roof = np.column_stack([rng.random(80_000) * 10, 14 + rng.random(80_000) * 10, np.zeros(80_000)])
+    roof[:, 2] = 0.4 + 3.0 + rng.normal(0, 0.02, len(roof))      # 3 m above the street below it
+    xyz = np.concatenate([street, roof]).astype(np.float32)
+    on_roof = np.arange(len(xyz)) >= len(street)
+    band = ~on_roof & (np.abs(xyz[:, 2] - 3.4) < 0.1)             # street points in the roof's slab
+    assert band.sum() > 1000
+    stage = RansacPlanes({"distance_threshold": 0.1, "min_inliers": 500, "max_planes": 3, "dh_max": 2.5,
+                          "ground_cell": 10.0, "xy_removal": xy_removal})
+    result = stage.run(Cloud(xyz=xyz, origin=np.zeros(3)), StageContext(seed=0))
+    assert result.info["plane_list"][0]["class"] == "XY"
+    assert result.keep[on_roof].mean() < 0.02                    # the roof goes either way
+    if xy_removal == "plane":
+        assert result.keep[band].mean() < 0.5                     # with a band of road
+    else:
+        assert result.keep[band].all() and result.keep[~on_roof].all()

@@ -5,8 +5,10 @@ hypotheses scored in parallel, least-squares refit); stop when it has fewer than
 points, when fewer than 3 unmatched points remain, or after ``max_planes`` planes. Each accepted
 plane is classified: tilted more than ``max_tilt_deg`` from horizontal -> Z class (walls, poles),
 removed; near-horizontal with the median height of its inliers above the local ground reference
-greater than ``dh_max`` -> XY class (roofs, terraces), removed; otherwise ground-level, kept. Its
-points are marked matched either way, so it is not found again.
+greater than ``dh_max`` -> XY class (roofs, terraces), removed (with ``xy_removal: point``, only
+its inliers that themselves stand above ``dh_max``: an infinite plane's slab at roof height also
+takes a band of a street that climbs to that height); otherwise ground-level, kept. Its points are
+marked matched either way, so it is not found again.
 The ground reference under a point is the lowest point of the 3 x 3 coarse grid cells
 (``ground_cell``) around its cell, so a roof point still sees the ground beside its building.
 """
@@ -16,6 +18,8 @@ import inspect
 import math
 
 import numpy as np
+from typing import Literal
+
 from pydantic import Field
 
 from roadx_ti.cloud import Cloud
@@ -35,6 +39,10 @@ class RansacOptions(StageOptions):
                           "above the ground reference is XY class and removed (m)")
     ground_cell: float = Field(10.0, gt=0, description="cell edge of the ground reference grid (m); the "
                                "reference is the minimum over the 3 x 3 cells around a point's cell")
+    xy_removal: Literal["plane", "point"] = Field(
+        "plane", description="plane: every inlier of an XY plane is removed (METHODS.md R3); point: only "
+        "the inliers that themselves stand more than dh_max above the ground reference (the slab of a "
+        "horizontal roof plane also crosses a sloped street where the street reaches the roof's height)")
 
 
 def _height_above_local_minimum(xyz, cell_size, ctx=None):
@@ -117,7 +125,9 @@ class RansacPlanes(Stage):
                 kind = "XY"
             else:
                 kind = "ground"
-            if kind != "ground":
+            if kind == "XY" and o.xy_removal == "point":
+                keep[inliers[height_above_ground[inliers] > o.dh_max]] = False
+            elif kind != "ground":
                 keep[inliers] = False
             unmatched, unmatched_xyz = unmatched[~hit], unmatched_xyz[~hit]
             planes.append({"plane": [round(float(v), 6) for v in fit.plane], "points": int(len(inliers)),
