@@ -53,6 +53,40 @@ def _cell_lowest_point(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.typ
 
 
 @ti.kernel
+def _cell_min_z_key_except(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                           first: ti.types.ndarray(dtype=ti.i32, ndim=1), second: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                           cell_min_z_key: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in cell:
+        c = cell[i]
+        if i != first[c] and i != second[c]:
+            ti.atomic_min(cell_min_z_key[c], f32_order_key(xyz[i, 2]))
+
+
+@ti.kernel
+def _cell_lowest_point_except(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                              first: ti.types.ndarray(dtype=ti.i32, ndim=1), second: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                              cell_min_z_key: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                              cell_lowest: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in cell:
+        c = cell[i]
+        if i != first[c] and i != second[c] and f32_order_key(xyz[i, 2]) == cell_min_z_key[c]:
+            ti.atomic_min(cell_lowest[c], i)
+
+
+@ti.kernel
+def _supported_lowest(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), first: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                      second: ti.types.ndarray(dtype=ti.i32, ndim=1), third: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                      gap: ti.f32, out: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for c in out:
+        g = first[c]
+        if third[c] != INT32_MAX:
+            z3 = xyz[third[c], 2]
+            if z3 - xyz[first[c], 2] > gap:
+                g = second[c] if z3 - xyz[second[c], 2] <= gap else third[c]
+        out[c] = g
+
+
+@ti.kernel
 def _slope_test(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.types.ndarray(dtype=ti.i32, ndim=1),
                 cell_lowest: ti.types.ndarray(dtype=ti.i32, ndim=1),
                 height_above_min: ti.types.ndarray(dtype=ti.f32, ndim=1),
@@ -105,6 +139,27 @@ def _lowest_per_cell(pts, cell, n_cells, reference):
     _cell_min_z_key(pts, cell, cell_min_z_key)
     _cell_lowest_point(pts, cell, cell_min_z_key, cell_lowest)
     return _empty_as_minus_one(like_input(cell_lowest, reference))
+
+
+def _supported_lowest_per_cell(pts, cell, n_cells, reference, gap: float):
+    """Per cell, the lowest of its three lowest points that the others of the three follow within
+    ``gap`` m: a low outlier (or a pair) under the surface is skipped; cells of fewer than three
+    points keep their lowest (two points cannot say which is the outlier). -1 for empty cells."""
+    none = ndarray(ti.i32, (n_cells,))
+    _fill_i32(none, -1)
+    ranks = []
+    for _ in range(3):
+        key = ndarray(ti.i32, (n_cells,))
+        lowest = ndarray(ti.i32, (n_cells,))
+        _fill_i32(key, INT32_MAX)
+        _fill_i32(lowest, INT32_MAX)
+        first, second = (ranks + [none, none])[:2]
+        _cell_min_z_key_except(pts, cell, first, second, key)
+        _cell_lowest_point_except(pts, cell, first, second, key, lowest)
+        ranks.append(lowest)
+    out = output_array(ti.i32, (n_cells,), reference)
+    _supported_lowest(pts, ranks[0], ranks[1], ranks[2], float(gap), out)
+    return _empty_as_minus_one(like_input(out, reference))
 
 
 def cell_minimum(xyz, step: float, origin=None):
@@ -190,11 +245,14 @@ def _empty_as_minus_one(cell_lowest):
     return cell_lowest
 
 
-def slope_filter(xyz, step: float, slope_max: float, dh_max: float, origin=None):
+def slope_filter(xyz, step: float, slope_max: float, dh_max: float, origin=None, outlier_gap: float | None = None):
     """METHODS.md R4: keep a point when its slope to its cell's lowest point is below
     ``slope_max`` and its height above that point is below ``dh_max`` (metres). Dense or sparse
     cells (module docstring): the same result. ``origin`` (x_min, y_min): the grid's corner
     instead of the points' minimum (the stage passes the minimum without far stray points).
+    ``outlier_gap`` (m): the cell's reference is instead the lowest of its three lowest points
+    that the others of the three follow within the gap (a low outlier under the surface, which
+    would make every point of its cell "high", is skipped; points under the reference are kept).
 
     Returns ``(keep, height_above_cell_min)``: uint8 keep flags and float32 dh per point.
     """
@@ -204,6 +262,9 @@ def slope_filter(xyz, step: float, slope_max: float, dh_max: float, origin=None)
         cell, cell_lowest, _ = sparse_cell_minimum(pts, step, origin)
     else:
         cell, cell_lowest, _ = cell_minimum(pts, step, origin)
+    if outlier_gap is not None and n:
+        cell_lowest = _supported_lowest_per_cell(pts, kernel_array(cell, "int32"), int(cell_lowest.shape[0]),
+                                                 cell_lowest, outlier_gap)
     height = output_array(ti.f32, (n,), xyz)
     keep = output_array(ti.u8, (n,), xyz)
     _slope_test(pts, cell, cell_lowest, height, keep, float(slope_max), float(dh_max))

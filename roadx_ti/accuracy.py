@@ -113,6 +113,22 @@ NOTES = {
         "0.03; 3 x the noise took road too (300 k seeds 0 / 2 / 4 / 6 E1 +1.1-1.3 points); AHN3 E1 6.80 "
         "-> 7.14 %, E2 1.50 -> 1.38 %; the 4 M road pipeline 8.92 -> 9.15 s (medians of 3 alternating "
         "rounds, in process) (2026-12-04).",
+        "R3 with `xy_removal: point` (89e49b8): an XY plane's inliers are removed only where they "
+        "themselves stand more than dh_max above the ground reference. The infinite plane's slab of "
+        "a horizontal roof also crossed sloped streets where they climb to the roof's height (4 M seed "
+        "0: 1,067 road points): 4 M E1 lower on 9 of 10 scenes (seed 0 1.81 -> 1.17 %, seed 6 1.38 -> "
+        "1.05 %), 1 M seed 4 1.79 -> 2.08 % (a flip of the cut), AHN3 E2 1.38 -> 1.10 % (2026-12-04).",
+        "R4 with `cell_reference: supported`: a cell's reference is the lowest of its three lowest "
+        "points that the other two follow within the noise allowance (4 x the height noise). Low "
+        "outliers that SOR keeps (1 M seed 5: 155 of 1,981 class-7 points reach R4, 0.3-0.9 m under the "
+        "surface) made every point of their cells high: 488 of the 559 road points R4 removed there. "
+        "E1 lower on 26 of the 30 scenes of the matrix (1 M seed 9 2.99 -> 1.83 %, 4 M seed 8 7.72 -> "
+        "6.51 %), uav-road-v1 1 M seeds 0-3 1.17 / 0.77 / 1.12 / 0.87 -> 0.82 / 0.51 / 0.80 / 0.43 %; "
+        "but the changed input of R6 flipped two sidewalk pieces in the cut: 300 k seed 2 E2 0.67 -> "
+        "2.02 %, 4 M seed 3 2.86 -> 5.03 %. A gap of at least 0.2 or 0.3 m instead moved other scenes "
+        "by other flips (300 k seed 2 E2 2.02 / 2.44 %, 4 M seed 3 5.03 / 2.84 %, 1 M seed 9 E1 1.83 / "
+        "2.60 %); removing the skipped low points as well (more than the gap under the reference) "
+        "took road points below kerbs where a cell's third lowest point is on the sidewalk (2026-12-04).",
         "What the invariance test's disagreements are (300 k seed 2 in memory against its 1 mm LAZ, "
         "2026-12-04): 93 % lie within 0.5 m of the road's boundary (median 0.14 m, about one point "
         "spacing), about half on points both runs processed; the 1 mm delivery changes which points "

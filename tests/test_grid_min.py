@@ -5,7 +5,7 @@ import pytest
 from roadx_ti.kernels import grid_min
 
 
-def numpy_reference(xyz, step, slope_max, dh_max):
+def numpy_reference(xyz, step, slope_max, dh_max, outlier_gap=None):
     x_min, y_min = xyz[:, 0].min(), xyz[:, 1].min()
     n_cols = int(np.floor((xyz[:, 0].max() - x_min) / step)) + 1
     col = np.floor((xyz[:, 0] - x_min) / np.float32(step)).astype(np.int64)
@@ -16,6 +16,16 @@ def numpy_reference(xyz, step, slope_max, dh_max):
     first = np.ones(len(order), bool)
     first[1:] = cell[order][1:] != cell[order][:-1]
     lowest_of_cell = dict(zip(cell[order][first].tolist(), order[first].tolist()))
+    if outlier_gap is not None:
+        # the lowest of the cell's three lowest that the others of the three follow within the gap
+        starts = np.flatnonzero(first)
+        stops = np.append(starts[1:], len(order))
+        for a, b in zip(starts, stops):
+            if b - a >= 3:
+                p1, p2, p3 = order[a:a + 3]
+                z1, z2, z3 = xyz[[p1, p2, p3], 2]
+                if z3 - z1 > np.float32(outlier_gap):
+                    lowest_of_cell[cell[p1]] = int(p2 if z3 - z2 <= np.float32(outlier_gap) else p3)
     g = np.array([lowest_of_cell[c] for c in cell.tolist()])
     dh = xyz[:, 2] - xyz[g, 2]
     horizontal = np.sqrt((xyz[:, 0] - xyz[g, 0]) ** 2 + (xyz[:, 1] - xyz[g, 1]) ** 2)
@@ -43,6 +53,25 @@ def test_slope_filter_equals_numpy(ti_arch, seed):
     assert 0 < keep.sum() < n
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_supported_reference_equals_numpy(ti_arch, seed):
+    """slope_filter's outlier_gap: the reference of a cell is the lowest of its three lowest points
+    that the others of the three follow within the gap (low outliers, single or paired, skipped)."""
+    rng = np.random.default_rng(seed)
+    n = 20000
+    xyz = np.column_stack([rng.uniform(0, 30, n), rng.uniform(-5, 12, n), rng.normal(0, 0.03, n)]).astype(np.float32)
+    xyz[:60, 2] -= rng.uniform(0.3, 2.0, 60).astype(np.float32)     # low outliers ...
+    xyz[60:80] = xyz[:20] + np.float32([0.01, 0.0, 0.05])            # ... some in pairs
+    xyz[100:110] = xyz[99]                                           # ties in z, resolved by index
+    cell, g, keep, dh = numpy_reference(xyz, 0.5, 2.0, 0.5, outlier_gap=0.12)
+    got_keep, got_dh = grid_min.slope_filter(xyz, 0.5, 2.0, 0.5, outlier_gap=0.12)
+    np.testing.assert_array_equal(got_dh, dh.astype(np.float32))
+    np.testing.assert_array_equal(got_keep.astype(bool), keep)
+    plain_keep, _ = grid_min.slope_filter(xyz, 0.5, 2.0, 0.5)
+    # with the lowest point as reference, an outlier's cell loses its surface points
+    assert keep[80:].sum() > plain_keep[80:].sum() + 100
+
+
 def test_empty_cells_are_minus_one(ti_arch):
     xyz = np.array([[0, 0, 1], [2.9, 0, 2], [2.9, 2.9, 0.5]], np.float32)
     _, cell_lowest, n_cols = grid_min.cell_minimum(xyz, 1.0)
@@ -53,3 +82,18 @@ def test_empty_cells_are_minus_one(ti_arch):
 def test_bad_step_is_refused(ti_arch):
     with pytest.raises(ValueError, match="step"):
         grid_min.cell_minimum(np.zeros((3, 3), np.float32), 0.0)
+
+
+def test_supported_reference_is_the_same_on_sparse_cells(ti_arch):
+    """A stray point 500 km away makes the grid sparse (compact cell ids): the other points get
+    the same reference heights and keep flags as on the dense grid."""
+    rng = np.random.default_rng(5)
+    n = 5000
+    xyz = np.column_stack([rng.uniform(0, 20, n), rng.uniform(0, 20, n), rng.normal(0, 0.03, n)]).astype(np.float32)
+    xyz[:30, 2] -= 1.0
+    far = np.concatenate([xyz, np.float32([[5e5, 5e5, 0.0]])])
+    assert grid_min.dense_fits(xyz, 0.5) and not grid_min.dense_fits(far, 0.5)
+    keep, dh = grid_min.slope_filter(xyz, 0.5, 2.0, 0.5, outlier_gap=0.12)
+    far_keep, far_dh = grid_min.slope_filter(far, 0.5, 2.0, 0.5, outlier_gap=0.12)
+    np.testing.assert_array_equal(far_dh[:n], dh)
+    np.testing.assert_array_equal(far_keep[:n], keep)

@@ -8,7 +8,7 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
@@ -25,6 +25,17 @@ class GridSlopeOptions(StageOptions):
         None, description="a point less than this above its cell's lowest point is never removed for "
         "its slope (m): near the lowest point, noise alone makes S large. 'auto': 4 x the survey's "
         "height noise; None: off (the paper's test)")
+    cell_reference: Literal["lowest", "supported"] = Field(
+        "lowest", description="lowest: the cell's lowest point (METHODS.md R4); supported: the lowest of "
+        "its three lowest points that the others of the three follow within the noise allowance, so "
+        "that a low outlier (matching errors leave points 0.3-2 m under the surface that SOR keeps) "
+        "does not make every point of its cell high; needs noise_allowance")
+
+    @model_validator(mode="after")
+    def _supported_needs_allowance(self):
+        if self.cell_reference == "supported" and not self.noise_allowance:
+            raise ValueError("cell_reference 'supported' needs noise_allowance (a height in m or 'auto')")
+        return self
 
 
 class GridSlope(Stage):
@@ -40,13 +51,14 @@ class GridSlope(Stage):
         if cloud.n == 0:
             return StageResult()
         o = self.options
-        keep, height = slope_filter(cloud.xyz, o.step, o.slope_max, o.dh_max,
-                                    origin=isolation.corner_without_isolated(cloud.xyz, ctx))
-        keep = keep.astype(bool)
-        info = {}
         allowance = o.noise_allowance
         if allowance == "auto":
             allowance = 4.0 * float(estimate(ctx, "height_noise_m", 0.0))
+        gap = float(allowance) if o.cell_reference == "supported" and allowance else None
+        keep, height = slope_filter(cloud.xyz, o.step, o.slope_max, o.dh_max,
+                                    origin=isolation.corner_without_isolated(cloud.xyz, ctx), outlier_gap=gap)
+        keep = keep.astype(bool)
+        info = {} if gap is None else {"outlier_gap_m": round(gap, 4)}
         if allowance:
             keep |= (np.asarray(height) < allowance) & (np.asarray(height) < o.dh_max)
             info["noise_allowance_m"] = round(float(allowance), 4)
