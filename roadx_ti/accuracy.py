@@ -47,7 +47,9 @@ NOTES = {
         "by parked cars or deep shadow are dropped (E1); these are whole regions, so a scene's figures "
         "move by several points between near-identical deliveries (tests/test_invariance.py: 93.7-99.2 % "
         "label agreement for 1 mm / 1 cm LAZ and half density; shuffled and 8-bit colour exact; "
-        "99.07-99.43 % on 2026-12-03 with slope smoothing, 99.14-99.45 % with the surface test).",
+        "99.07-99.43 % on 2026-12-03 with slope smoothing, 99.14-99.45 % with the surface test, 98.31-98.51 % "
+        "with R4's supported cell reference, whose in-memory run takes a sidewalk piece into the road "
+        "that the deliveries leave out).",
         "Tiled against untiled (4 M seed 0 through its LAZ, `--tile-size 50`, 16 tiles, 30 m buffers): "
         "99.62 % of the labels agree, tiled E1 3.33 % against 1.07 % untiled; most of the difference is "
         "one road corner of ~60 m2 that the tile's own cut leaves out (its colour model is learnt from "
