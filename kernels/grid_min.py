@@ -80,9 +80,9 @@ def _supported_lowest(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), first: ti.typ
     for c in out:
         g = first[c]
         if third[c] != INT32_MAX:
-            z3 = xyz[third[c], 2]
-            if z3 - xyz[first[c], 2] > gap:
-                g = second[c] if z3 - xyz[second[c], 2] <= gap else third[c]
+            z2 = xyz[second[c], 2]
+            if z2 - xyz[first[c], 2] > gap and xyz[third[c], 2] - z2 <= gap:
+                g = second[c]
         out[c] = g
 
 
@@ -141,25 +141,34 @@ def _lowest_per_cell(pts, cell, n_cells, reference):
     return _empty_as_minus_one(like_input(cell_lowest, reference))
 
 
-def _supported_lowest_per_cell(pts, cell, n_cells, reference, gap: float):
-    """Per cell, the lowest of its three lowest points that the others of the three follow within
-    ``gap`` m: a low outlier (or a pair) under the surface is skipped; cells of fewer than three
-    points keep their lowest (two points cannot say which is the outlier). -1 for empty cells."""
+def _supported_lowest_per_cell(pts, cell, cell_lowest, gap: float):
+    """Per cell, its lowest point unless that point lies more than ``gap`` m under the second
+    lowest while the third follows the second within ``gap``: a single low outlier under the
+    surface is skipped (the second lowest is the reference). Anything else keeps the lowest: in
+    cells of fewer than three points, two points cannot say which is the outlier, and three that
+    do not agree (ground, a car's side, a wall) say nothing about the ground; a pair of low
+    outliers agrees with itself and stays. -1 for empty cells."""
+    n_cells = int(cell_lowest.shape[0])
+    first = kernel_array(cell_lowest, "int32")        # -1 for an empty cell: no point has that index
     none = ndarray(ti.i32, (n_cells,))
     _fill_i32(none, -1)
-    ranks = []
-    for _ in range(3):
-        key = ndarray(ti.i32, (n_cells,))
-        lowest = ndarray(ti.i32, (n_cells,))
-        _fill_i32(key, INT32_MAX)
-        _fill_i32(lowest, INT32_MAX)
-        first, second = (ranks + [none, none])[:2]
-        _cell_min_z_key_except(pts, cell, first, second, key)
-        _cell_lowest_point_except(pts, cell, first, second, key, lowest)
-        ranks.append(lowest)
-    out = output_array(ti.i32, (n_cells,), reference)
-    _supported_lowest(pts, ranks[0], ranks[1], ranks[2], float(gap), out)
-    return _empty_as_minus_one(like_input(out, reference))
+    second = _lowest_except(pts, cell, n_cells, first, none)
+    third = _lowest_except(pts, cell, n_cells, first, second)
+    out = output_array(ti.i32, (n_cells,), cell_lowest)
+    _supported_lowest(pts, first, second, third, float(gap), out)
+    return _empty_as_minus_one(like_input(out, cell_lowest))
+
+
+def _lowest_except(pts, cell, n_cells, first, second):
+    """Per cell, the lowest point other than ``first`` and ``second`` (ties to the lowest index;
+    INT32_MAX where none is left)."""
+    key = ndarray(ti.i32, (n_cells,))
+    lowest = ndarray(ti.i32, (n_cells,))
+    _fill_i32(key, INT32_MAX)
+    _fill_i32(lowest, INT32_MAX)
+    _cell_min_z_key_except(pts, cell, first, second, key)
+    _cell_lowest_point_except(pts, cell, first, second, key, lowest)
+    return lowest
 
 
 def cell_minimum(xyz, step: float, origin=None):
@@ -250,9 +259,10 @@ def slope_filter(xyz, step: float, slope_max: float, dh_max: float, origin=None,
     ``slope_max`` and its height above that point is below ``dh_max`` (metres). Dense or sparse
     cells (module docstring): the same result. ``origin`` (x_min, y_min): the grid's corner
     instead of the points' minimum (the stage passes the minimum without far stray points).
-    ``outlier_gap`` (m): the cell's reference is instead the lowest of its three lowest points
-    that the others of the three follow within the gap (a low outlier under the surface, which
-    would make every point of its cell "high", is skipped; points under the reference are kept).
+    ``outlier_gap`` (m): a cell's lowest point is skipped as its reference when it lies more than
+    the gap under the second lowest and the third follows the second within the gap (a single low
+    outlier under the surface would make every point of its cell "high"; points under the
+    reference are kept).
 
     Returns ``(keep, height_above_cell_min)``: uint8 keep flags and float32 dh per point.
     """
@@ -263,8 +273,7 @@ def slope_filter(xyz, step: float, slope_max: float, dh_max: float, origin=None,
     else:
         cell, cell_lowest, _ = cell_minimum(pts, step, origin)
     if outlier_gap is not None and n:
-        cell_lowest = _supported_lowest_per_cell(pts, kernel_array(cell, "int32"), int(cell_lowest.shape[0]),
-                                                 cell_lowest, outlier_gap)
+        cell_lowest = _supported_lowest_per_cell(pts, kernel_array(cell, "int32"), cell_lowest, outlier_gap)
     height = output_array(ti.f32, (n,), xyz)
     keep = output_array(ti.u8, (n,), xyz)
     _slope_test(pts, cell, cell_lowest, height, keep, float(slope_max), float(dh_max))

@@ -17,15 +17,16 @@ def numpy_reference(xyz, step, slope_max, dh_max, outlier_gap=None):
     first[1:] = cell[order][1:] != cell[order][:-1]
     lowest_of_cell = dict(zip(cell[order][first].tolist(), order[first].tolist()))
     if outlier_gap is not None:
-        # the lowest of the cell's three lowest that the others of the three follow within the gap
+        # a single low point under two that agree is skipped: the second lowest is the reference
         starts = np.flatnonzero(first)
         stops = np.append(starts[1:], len(order))
+        gap = np.float32(outlier_gap)
         for a, b in zip(starts, stops):
             if b - a >= 3:
                 p1, p2, p3 = order[a:a + 3]
                 z1, z2, z3 = xyz[[p1, p2, p3], 2]
-                if z3 - z1 > np.float32(outlier_gap):
-                    lowest_of_cell[cell[p1]] = int(p2 if z3 - z2 <= np.float32(outlier_gap) else p3)
+                if z2 - z1 > gap and z3 - z2 <= gap:
+                    lowest_of_cell[cell[p1]] = int(p2)
     g = np.array([lowest_of_cell[c] for c in cell.tolist()])
     dh = xyz[:, 2] - xyz[g, 2]
     horizontal = np.sqrt((xyz[:, 0] - xyz[g, 0]) ** 2 + (xyz[:, 1] - xyz[g, 1]) ** 2)
@@ -55,14 +56,18 @@ def test_slope_filter_equals_numpy(ti_arch, seed):
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_supported_reference_equals_numpy(ti_arch, seed):
-    """slope_filter's outlier_gap: the reference of a cell is the lowest of its three lowest points
-    that the others of the three follow within the gap (low outliers, single or paired, skipped)."""
+    """slope_filter's outlier_gap: a cell's lowest point is skipped when it lies more than the gap
+    under the second lowest and the third follows the second within the gap (a single low
+    outlier); pairs of low points, and cells whose three lowest disagree, keep their lowest."""
     rng = np.random.default_rng(seed)
     n = 20000
     xyz = np.column_stack([rng.uniform(0, 30, n), rng.uniform(-5, 12, n), rng.normal(0, 0.03, n)]).astype(np.float32)
     xyz[:60, 2] -= rng.uniform(0.3, 2.0, 60).astype(np.float32)     # low outliers ...
     xyz[60:80] = xyz[:20] + np.float32([0.01, 0.0, 0.05])            # ... some in pairs
-    xyz[100:110] = xyz[99]                                           # ties in z, resolved by index
+    # ties in z among a cell's lowest points (different places in the cell): resolved by index
+    low = int(np.argmin(xyz[100:, 2])) + 100
+    xyz[90:93, :2] = xyz[low, :2] + np.float32([[0.01, 0.0], [0.0, 0.01], [0.01, 0.01]])
+    xyz[90:93, 2] = xyz[low, 2]
     cell, g, keep, dh = numpy_reference(xyz, 0.5, 2.0, 0.5, outlier_gap=0.12)
     got_keep, got_dh = grid_min.slope_filter(xyz, 0.5, 2.0, 0.5, outlier_gap=0.12)
     np.testing.assert_array_equal(got_dh, dh.astype(np.float32))
@@ -70,6 +75,12 @@ def test_supported_reference_equals_numpy(ti_arch, seed):
     plain_keep, _ = grid_min.slope_filter(xyz, 0.5, 2.0, 0.5)
     # with the lowest point as reference, an outlier's cell loses its surface points
     assert keep[80:].sum() > plain_keep[80:].sum() + 100
+    # three points of a cell that do not agree (ground, 1 cm above it, 1 m up: a car's side)
+    # keep the lowest as reference, so the high one goes as in the plain test
+    three = np.float32([[0.1, 0.1, 0.0], [0.2, 0.2, 0.01], [0.3, 0.3, 1.0]])
+    keep3, dh3 = grid_min.slope_filter(three, 0.5, 2.0, 0.5, outlier_gap=0.12)
+    np.testing.assert_array_equal(keep3, [1, 1, 0])
+    np.testing.assert_array_equal(dh3, three[:, 2])
 
 
 def test_empty_cells_are_minus_one(ti_arch):

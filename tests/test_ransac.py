@@ -140,11 +140,12 @@ def test_stage_removes_walls_and_roofs_keeps_ground():
     np.testing.assert_array_equal(result.keep, again.keep)
 
 
-@pytest.mark.parametrize("xy_removal", ["plane", "point"])
-def test_a_roof_plane_takes_no_road_uphill_with_point_removal(xy_removal):
+@pytest.mark.parametrize("xy_removal", ["plane", "part"])
+def test_a_roof_plane_takes_no_road_uphill_by_parts(xy_removal):
     """A flat roof 3 m above a street that climbs 8 %: the roof plane's slab (+-0.1 m) also crosses
     the street about 37 m uphill. xy_removal 'plane' (METHODS.md R3 literally) removes that band
-    of road with the roof; 'point' removes only the inliers that stand above dh_max: the roof."""
+    of road with the roof; 'part' classes the band, a part of the plane apart from the roof, by
+    its own height above the ground: the roof goes, the road stays."""
     from roadx_ti.cloud import Cloud
     from roadx_ti.stages.base import StageContext
     from roadx_ti.stages.planes import RansacPlanes
@@ -168,3 +169,27 @@ def test_a_roof_plane_takes_no_road_uphill_with_point_removal(xy_removal):
         assert result.keep[band].mean() < 0.5                     # with a band of road
     else:
         assert result.keep[band].all() and result.keep[~on_roof].all()
+        assert result.info["plane_list"][0]["removed"] == int((~result.keep).sum())
+
+
+def test_a_wide_roof_goes_whole_by_parts():
+    """A 60 x 60 m flat roof 6 m up: its middle has no ground within the 3 x 3 reference cells
+    of 10 m (its own height above that reference is about 0), but it is one part with its rim,
+    and the part's median height says roof: xy_removal 'part' removes all of it."""
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.planes import RansacPlanes, _height_above_local_minimum
+
+    rng = np.random.default_rng(12)
+    ground = np.column_stack([rng.random(40_000) * 100, rng.random(40_000) * 100, rng.normal(0, 0.02, 40_000)])
+    ground = ground[~((ground[:, 0] > 20) & (ground[:, 0] < 80) & (ground[:, 1] > 20) & (ground[:, 1] < 80))]
+    roof = np.column_stack([20 + rng.random(50_000) * 60, 20 + rng.random(50_000) * 60, 6 + rng.normal(0, 0.02, 50_000)])
+    xyz = np.concatenate([ground, roof]).astype(np.float32)
+    on_roof = np.arange(len(xyz)) >= len(ground)
+    hag = _height_above_local_minimum(xyz, 10.0)
+    assert (hag[on_roof] < 2.5).mean() > 0.1                      # the middle sees no ground
+    stage = RansacPlanes({"distance_threshold": 0.1, "min_inliers": 500, "max_planes": 3, "dh_max": 2.5,
+                          "ground_cell": 10.0, "xy_removal": "part"})
+    result = stage.run(Cloud(xyz=xyz, origin=np.zeros(3)), StageContext(seed=0))
+    assert not result.keep[on_roof].any()
+    assert result.keep[~on_roof].all()

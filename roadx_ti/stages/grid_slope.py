@@ -26,13 +26,15 @@ class GridSlopeOptions(StageOptions):
         "its slope (m): near the lowest point, noise alone makes S large. 'auto': 4 x the survey's "
         "height noise; None: off (the paper's test)")
     cell_reference: Literal["lowest", "supported"] = Field(
-        "lowest", description="lowest: the cell's lowest point (METHODS.md R4); supported: the lowest of "
-        "its three lowest points that the others of the three follow within the noise allowance, so "
-        "that a low outlier (matching errors leave points 0.3-2 m under the surface that SOR keeps) "
-        "does not make every point of its cell high; needs noise_allowance")
+        "lowest", description="lowest: the cell's lowest point (METHODS.md R4); supported: the second "
+        "lowest when the lowest lies more than the noise allowance under it and the third follows the "
+        "second within it, so that a single low outlier (matching errors leave points 0.3-2 m under "
+        "the surface that SOR keeps) does not make every point of its cell high; needs noise_allowance")
 
     @model_validator(mode="after")
     def _supported_needs_allowance(self):
+        if isinstance(self.noise_allowance, float) and self.noise_allowance < 0:
+            raise ValueError("noise_allowance must be >= 0 m (0: off), 'auto' or null")
         if self.cell_reference == "supported" and not self.noise_allowance:
             raise ValueError("cell_reference 'supported' needs noise_allowance (a height in m or 'auto')")
         return self
@@ -55,6 +57,8 @@ class GridSlope(Stage):
         if allowance == "auto":
             allowance = 4.0 * float(estimate(ctx, "height_noise_m", 0.0))
         gap = float(allowance) if o.cell_reference == "supported" and allowance else None
+        if o.cell_reference == "supported" and gap is None:
+            ctx.log.warning("grid_slope: no height noise measured; the cells' lowest points are the references")
         keep, height = slope_filter(cloud.xyz, o.step, o.slope_max, o.dh_max,
                                     origin=isolation.corner_without_isolated(cloud.xyz, ctx), outlier_gap=gap)
         keep = keep.astype(bool)
@@ -62,5 +66,6 @@ class GridSlope(Stage):
         if allowance:
             keep |= (np.asarray(height) < allowance) & (np.asarray(height) < o.dh_max)
             info["noise_allowance_m"] = round(float(allowance), 4)
+        # with the supported reference, a skipped low outlier stands below it: a negative height
         return StageResult(keep=keep, point_data={"height_above_cell_min": height},
                            info={"removed": int((~keep).sum()), **info})

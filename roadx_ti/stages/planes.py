@@ -5,10 +5,10 @@ hypotheses scored in parallel, least-squares refit); stop when it has fewer than
 points, when fewer than 3 unmatched points remain, or after ``max_planes`` planes. Each accepted
 plane is classified: tilted more than ``max_tilt_deg`` from horizontal -> Z class (walls, poles),
 removed; near-horizontal with the median height of its inliers above the local ground reference
-greater than ``dh_max`` -> XY class (roofs, terraces), removed (with ``xy_removal: point``, only
-its inliers that themselves stand above ``dh_max``: an infinite plane's slab at roof height also
-takes a band of a street that climbs to that height); otherwise ground-level, kept. Its points are
-marked matched either way, so it is not found again.
+greater than ``dh_max`` -> XY class (roofs, terraces), removed (with ``xy_removal: part``, each
+connected part of its inliers is classed by its own median height: an infinite plane's slab at
+roof height also takes a band of a street that climbs to that height, apart from the roof);
+otherwise ground-level, kept. Its points are marked matched either way, so it is not found again.
 The ground reference under a point is the lowest point of the 3 x 3 coarse grid cells
 (``ground_cell``) around its cell, so a roof point still sees the ground beside its building.
 """
@@ -16,14 +16,14 @@ from __future__ import annotations
 
 import inspect
 import math
-
-import numpy as np
 from typing import Literal
 
+import numpy as np
 from pydantic import Field
 
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.ransac import fit_plane
+from roadx_ti.stages.roof_filter import segment_medians
 from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
 
 
@@ -39,10 +39,13 @@ class RansacOptions(StageOptions):
                           "above the ground reference is XY class and removed (m)")
     ground_cell: float = Field(10.0, gt=0, description="cell edge of the ground reference grid (m); the "
                                "reference is the minimum over the 3 x 3 cells around a point's cell")
-    xy_removal: Literal["plane", "point"] = Field(
-        "plane", description="plane: every inlier of an XY plane is removed (METHODS.md R3); point: only "
-        "the inliers that themselves stand more than dh_max above the ground reference (the slab of a "
-        "horizontal roof plane also crosses a sloped street where the street reaches the roof's height)")
+    xy_removal: Literal["plane", "part"] = Field(
+        "plane", description="plane: every inlier of an XY plane is removed (METHODS.md R3); part: the "
+        "plane's inliers are split into connected parts (plan cells of part_cell) and each part is "
+        "classed by its own median height above the ground reference (the slab of a horizontal roof "
+        "plane also crosses a sloped street where the street climbs to the roof's height)")
+    part_cell: float = Field(1.0, gt=0, description="m: inliers in touching plan cells of this edge are one "
+                             "part of their plane (xy_removal: part)")
 
 
 def _height_above_local_minimum(xyz, cell_size, ctx=None):
@@ -88,6 +91,31 @@ def _neighbourhood_minimum(col, row, value):
     return best
 
 
+def connected_parts(xy: np.ndarray, cell: float) -> tuple[np.ndarray, int]:
+    """(part id per point, number of parts): points in plan cells of edge ``cell`` that touch
+    (8-neighbourhood) are one part. Cells from the occupied keys only (no bounding-box grid)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    if len(xy) == 0:
+        return np.zeros(0, np.int64), 0
+    ij = np.floor(np.asarray(xy, np.float64) / cell).astype(np.int64)
+    ij -= ij.min(axis=0) - 1
+    span = int(ij[:, 1].max()) + 2
+    keys, inverse = np.unique(ij[:, 0] * span + ij[:, 1], return_inverse=True)
+    inverse = inverse.ravel()
+    rows, cols = [], []
+    for di, dj in ((1, -1), (1, 0), (1, 1), (0, 1)):      # each touching pair once
+        j = np.minimum(np.searchsorted(keys, keys + di * span + dj), len(keys) - 1)
+        hit = keys[j] == keys + di * span + dj
+        rows.append(np.flatnonzero(hit))
+        cols.append(j[hit])
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    graph = coo_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(len(keys), len(keys)))
+    parts, label = connected_components(graph, directed=False)
+    return label[inverse], int(parts)
+
+
 class RansacPlanes(Stage):
     name = "ransac_planes"
     Options = RansacOptions
@@ -125,13 +153,17 @@ class RansacPlanes(Stage):
                 kind = "XY"
             else:
                 kind = "ground"
-            if kind == "XY" and o.xy_removal == "point":
-                keep[inliers[height_above_ground[inliers] > o.dh_max]] = False
+            removed = len(inliers) if kind != "ground" else 0
+            if kind == "XY" and o.xy_removal == "part":
+                part, parts = connected_parts(xyz[inliers, :2], o.part_cell)
+                high = segment_medians(part, height_above_ground[inliers], parts) > o.dh_max
+                removed = int(high[part].sum())
+                keep[inliers[high[part]]] = False
             elif kind != "ground":
                 keep[inliers] = False
             unmatched, unmatched_xyz = unmatched[~hit], unmatched_xyz[~hit]
             planes.append({"plane": [round(float(v), 6) for v in fit.plane], "points": int(len(inliers)),
-                           "class": kind, "median_height": round(median_height, 3)})
+                           "removed": int(removed), "class": kind, "median_height": round(median_height, 3)})
         info = {"planes": len(planes), "removed": int((~keep).sum()),
                 "by_class": {c: sum(p["points"] for p in planes if p["class"] == c) for c in ("Z", "XY", "ground")},
                 "plane_list": planes}

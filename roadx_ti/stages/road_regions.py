@@ -117,7 +117,8 @@ def kerb_evidence(steps, sigma, kerb_min, kerb_max, prior):
 def above_road_surface(xyz, gradient, is_road, k: int, tolerance: float):
     """(road, count): ``is_road`` without the road points that stand more than ``tolerance`` above
     the road's local surface, the median slope-corrected height of themselves and their ``k``
-    nearest road points in plan (kernels regions.mode_heights with no mode steps). Cars stand on
+    nearest road points in plan, those within three times the median distance to the k-th
+    (kernels regions.mode_heights with no mode steps). Cars stand on
     the road and their lowest parts, within the cloth's class threshold of it, joined its regions;
     a median over a plan neighbourhood wider than a car's skirt is the road's own height."""
     from roadx_ti.kernels import regions
@@ -129,7 +130,10 @@ def above_road_surface(xyz, gradient, is_road, k: int, tolerance: float):
         return is_road, 0
     part = np.ascontiguousarray(xyz[road])
     flat = np.ascontiguousarray(np.column_stack([part[:, :2], np.zeros(len(part), np.float32)]))
-    neighbours = knn(flat, k)[0]
+    neighbours, distance = knn(flat, k)
+    # no neighbours from far off (a small road piece, or another level of a bridge): at most
+    # three times the typical reach of the k nearest
+    neighbours = np.where(distance <= 3.0 * np.median(distance[:, -1]), neighbours, -1).astype(np.int32)
     local = regions.mode_heights(part, neighbours, np.ascontiguousarray(gradient[road]), 0.0, steps=0)
     above = part[:, 2] - np.asarray(local) > np.float32(tolerance)
     out = is_road.copy()
