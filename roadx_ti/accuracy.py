@@ -73,7 +73,8 @@ NOTES = {
         "Tiled against untiled after this session's R3 / R4 / R6 changes (a7bba10, 4 M seed 0 through its LAZ, "
         "`--tile-size 100` and `50`, 30 m buffers; 2026-12-04): 99.945 % agree at 100 m (2,196 points; tiled "
         "E1 0.90 / E2 0.35 %, untiled 1.01 / 0.32 %), 99.631 % at 50 m (14,770 points; tiled E1 3.15 %): "
-        "the road corner that a 50 m tile's own cut leaves out, as before.",
+        "the road corner that a 50 m tile's own cut leaves out, as before; at a537f39 (the rules after "
+        "review) 99.950 % at 100 m (2,013 points).",
         "A vegetation cue by excess green of region mean colours (a257b4f; unchanged by shadow) took "
         "shaded lawns continuous with the road out of it: 4 M seed 3 E2 12.09 -> 2.91 %, 300 k seed 2 "
         "0.95 -> 0.78 %; 6 of 31 synthetic scenes still break a bound (2026-12-03).",
