@@ -150,9 +150,7 @@ def _supported_lowest_per_cell(pts, cell, cell_lowest, gap: float):
     outliers agrees with itself and stays. -1 for empty cells."""
     n_cells = int(cell_lowest.shape[0])
     first = kernel_array(cell_lowest, "int32")        # -1 for an empty cell: no point has that index
-    none = ndarray(ti.i32, (n_cells,))
-    _fill_i32(none, -1)
-    second = _lowest_except(pts, cell, n_cells, first, none)
+    second = _lowest_except(pts, cell, n_cells, first, first)
     third = _lowest_except(pts, cell, n_cells, first, second)
     out = output_array(ti.i32, (n_cells,), cell_lowest)
     _supported_lowest(pts, first, second, third, float(gap), out)

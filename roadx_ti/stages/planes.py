@@ -21,6 +21,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
+from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.ransac import fit_plane
 from roadx_ti.stages.roof_filter import segment_medians
@@ -91,31 +92,6 @@ def _neighbourhood_minimum(col, row, value):
     return best
 
 
-def connected_parts(xy: np.ndarray, cell: float) -> tuple[np.ndarray, int]:
-    """(part id per point, number of parts): points in plan cells of edge ``cell`` that touch
-    (8-neighbourhood) are one part. Cells from the occupied keys only (no bounding-box grid)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    if len(xy) == 0:
-        return np.zeros(0, np.int64), 0
-    ij = np.floor(np.asarray(xy, np.float64) / cell).astype(np.int64)
-    ij -= ij.min(axis=0) - 1
-    span = int(ij[:, 1].max()) + 2
-    keys, inverse = np.unique(ij[:, 0] * span + ij[:, 1], return_inverse=True)
-    inverse = inverse.ravel()
-    rows, cols = [], []
-    for di, dj in ((1, -1), (1, 0), (1, 1), (0, 1)):      # each touching pair once
-        j = np.minimum(np.searchsorted(keys, keys + di * span + dj), len(keys) - 1)
-        hit = keys[j] == keys + di * span + dj
-        rows.append(np.flatnonzero(hit))
-        cols.append(j[hit])
-    rows, cols = np.concatenate(rows), np.concatenate(cols)
-    graph = coo_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(len(keys), len(keys)))
-    parts, label = connected_components(graph, directed=False)
-    return label[inverse], int(parts)
-
-
 class RansacPlanes(Stage):
     name = "ransac_planes"
     Options = RansacOptions
@@ -155,8 +131,10 @@ class RansacPlanes(Stage):
                 kind = "ground"
             removed = len(inliers) if kind != "ground" else 0
             if kind == "XY" and o.xy_removal == "part":
-                part, parts = connected_parts(xyz[inliers, :2], o.part_cell)
-                high = segment_medians(part, height_above_ground[inliers], parts) > o.dh_max
+                # connected parts: touching plan cells of part_cell (isolation's block parts)
+                found = isolation.parts(xyz[inliers, :2], o.part_cell)
+                part = np.zeros(len(inliers), np.int64) if found.label is None else found.label
+                high = segment_medians(part, height_above_ground[inliers], found.count) > o.dh_max
                 removed = int(high[part].sum())
                 keep[inliers[high[part]]] = False
             elif kind != "ground":
