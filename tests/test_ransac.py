@@ -193,3 +193,38 @@ def test_a_wide_roof_goes_whole_by_parts():
     result = stage.run(Cloud(xyz=xyz, origin=np.zeros(3)), StageContext(seed=0))
     assert not result.keep[on_roof].any()
     assert result.keep[~on_roof].all()
+
+
+def test_a_steep_street_stays_ground_with_a_sloped_reference():
+    """A street climbing at 15 % (diagonally to the grid), with a 6 m flat-roofed building beside it. The plain
+    3 x 3 minimum of 10 m cells lies up to ~3 m under the street (the lowest point 15-20 m
+    downhill), so the street's plane came out above dh_max and was removed as an XY (roof) plane;
+    with ground_slope 0.15 each neighbour's minimum counts raised along the grade: the street
+    stays, the roof still goes."""
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.planes import RansacPlanes, _height_above_local_minimum
+
+    rng = np.random.default_rng(5)
+    n = 60_000
+    street = np.column_stack([rng.random(n) * 100, rng.random(n) * 100, np.zeros(n)])
+    grade = 0.15 / np.sqrt(2.0)
+    street[:, 2] = grade * (street[:, 0] + street[:, 1]) + rng.normal(0, 0.02, n)
+    building = (street[:, 0] > 40) & (street[:, 0] < 55) & (street[:, 1] > 40) & (street[:, 1] < 55)
+    street = street[~building]
+    roof = np.column_stack([40 + rng.random(8_000) * 15, 40 + rng.random(8_000) * 15, np.zeros(8_000)])
+    roof[:, 2] = grade * 95.0 + 6.0 + rng.normal(0, 0.02, 8_000)
+    xyz = np.concatenate([street, roof]).astype(np.float32)
+    on_roof = np.arange(len(xyz)) >= len(street)
+    plain = _height_above_local_minimum(xyz, 10.0)
+    sloped = _height_above_local_minimum(xyz, 10.0, slope=0.15)
+    assert np.median(plain[~on_roof]) > 2.5 > np.quantile(sloped[~on_roof], 0.99)
+    assert np.all(sloped <= plain + 1e-5) and np.all(sloped >= -1e-5)     # a higher reference, never above a point's own cell minimum
+    assert np.median(sloped[on_roof]) > 2.5
+    options = {"distance_threshold": 0.1, "min_inliers": 500, "max_planes": 3, "dh_max": 2.5,
+               "ground_cell": 10.0, "xy_removal": "part"}
+    cloud = Cloud(xyz=xyz, origin=np.zeros(3))
+    before = RansacPlanes(options).run(cloud, StageContext(seed=0))
+    assert not before.keep[~on_roof].all()                       # the plain reference took street
+    after = RansacPlanes({**options, "ground_slope": 0.15}).run(cloud, StageContext(seed=0))
+    assert after.keep[~on_roof].all() and not after.keep[on_roof].any()

@@ -64,8 +64,9 @@ class GridSlope(Stage):
         keep = keep.astype(bool)
         info = {} if gap is None else {"outlier_gap_m": round(gap, 4)}
         if allowance:
-            keep |= (np.asarray(height) < allowance) & (np.asarray(height) < o.dh_max)
+            dh = np.asarray(height)
+            keep |= (dh < allowance) & (dh < o.dh_max)
             info["noise_allowance_m"] = round(float(allowance), 4)
-        # with the supported reference, a skipped low outlier stands below it: a negative height
+        # height_above_cell_min is negative for a low outlier the supported reference skipped
         return StageResult(keep=keep, point_data={"height_above_cell_min": height},
                            info={"removed": int((~keep).sum()), **info})

@@ -10,7 +10,11 @@ connected part of its inliers is classed by its own median height: an infinite p
 roof height also takes a band of a street that climbs to that height, apart from the roof);
 otherwise ground-level, kept. Its points are marked matched either way, so it is not found again.
 The ground reference under a point is the lowest point of the 3 x 3 coarse grid cells
-(``ground_cell``) around its cell, so a roof point still sees the ground beside its building.
+(``ground_cell``) around its cell, so a roof point still sees the ground beside its building;
+with ``ground_slope`` a neighbouring cell's lowest point counts raised by that grade over the
+distance between the cells, so that on steep terrain the reference follows the slope instead of
+lying metres under the street (a cone-limited lower envelope, as morphological ground filters
+bound the terrain's slope).
 """
 from __future__ import annotations
 
@@ -24,7 +28,7 @@ from pydantic import Field
 from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.ransac import fit_plane
-from roadx_ti.stages.roof_filter import segment_medians
+from roadx_ti.segments import segment_medians
 from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
 
 
@@ -40,6 +44,11 @@ class RansacOptions(StageOptions):
                           "above the ground reference is XY class and removed (m)")
     ground_cell: float = Field(10.0, gt=0, description="cell edge of the ground reference grid (m); the "
                                "reference is the minimum over the 3 x 3 cells around a point's cell")
+    ground_slope: float = Field(0.0, ge=0, le=1, description="terrain grade (rise / run) the ground reference "
+                                "follows: a neighbouring cell's minimum counts raised by this grade times the "
+                                "distance between the cell centres (0: the plain 3 x 3 minimum). On a street "
+                                "climbing at 15 % the plain minimum of a 30 m window lies up to 3 m under the "
+                                "ground, and the street's own plane was removed as an XY (roof) plane")
     xy_removal: Literal["plane", "part"] = Field(
         "plane", description="plane: every inlier of an XY plane is removed (METHODS.md R3); part: the "
         "plane's inliers are split into connected parts (plan cells of part_cell) and each part is "
@@ -49,14 +58,14 @@ class RansacOptions(StageOptions):
                              "part of their plane (xy_removal: part)")
 
 
-def _height_above_local_minimum(xyz, cell_size, ctx=None):
-    """z minus the lowest z of the 3 x 3 cells around each point's cell (per-cell minima from the
-    grid-min kernel; the 3 x 3 minimum over the occupied cells on the host, found by their keys,
-    so a bounding box inflated by far points costs nothing)."""
-    from roadx_ti.isolation import corner_without_isolated
+def _height_above_local_minimum(xyz, cell_size, ctx=None, slope=0.0):
+    """z minus the lowest z of the 3 x 3 cells around each point's cell, a neighbour's minimum raised
+    by ``slope`` times the distance between the cell centres (per-cell minima from the grid-min
+    kernel; the 3 x 3 minimum over the occupied cells on the host, found by their keys, so a
+    bounding box inflated by far points costs nothing)."""
     from roadx_ti.kernels.grid_min import cell_minimum, dense_fits, sparse_cell_minimum
 
-    origin = corner_without_isolated(xyz, ctx)       # far strays move no cell of the others
+    origin = isolation.corner_without_isolated(xyz, ctx)       # far strays move no cell of the others
     if dense_fits(xyz, cell_size, origin):
         cell, cell_lowest, n_cols = cell_minimum(xyz, cell_size, origin)
         occupied = np.flatnonzero(cell_lowest >= 0)
@@ -69,12 +78,13 @@ def _height_above_local_minimum(xyz, cell_size, ctx=None):
         cell, lowest, col_row = sparse_cell_minimum(xyz, cell_size, origin)
         col, row = col_row[:, 0], col_row[:, 1]
     cell_min_z = xyz[lowest, 2].astype(np.float32)
-    local_min = _neighbourhood_minimum(col.astype(np.int64), row.astype(np.int64), cell_min_z)
+    local_min = _neighbourhood_minimum(col.astype(np.int64), row.astype(np.int64), cell_min_z, slope * cell_size)
     return xyz[:, 2] - local_min[cell]
 
 
-def _neighbourhood_minimum(col, row, value):
-    """Per occupied cell, the minimum of ``value`` over the occupied cells of its 3 x 3 block."""
+def _neighbourhood_minimum(col, row, value, rise=0.0):
+    """Per occupied cell, the minimum of ``value`` over the occupied cells of its 3 x 3 block, a
+    neighbour's value raised by ``rise`` per cell of distance between the centres (1 or sqrt 2)."""
     col, row = col - col.min(), row - row.min()
     span = int(row.max()) + 3
     key = (col + 1) * span + (row + 1)
@@ -88,7 +98,8 @@ def _neighbourhood_minimum(col, row, value):
             target = key + dc * span + dr
             j = np.minimum(np.searchsorted(sorted_key, target), len(key) - 1)
             hit = sorted_key[j] == target
-            best[hit] = np.minimum(best[hit], value[order[j[hit]]])
+            raised = value[order[j[hit]]] + np.float32(rise * math.hypot(dc, dr))
+            best[hit] = np.minimum(best[hit], raised)
     return best
 
 
@@ -103,7 +114,7 @@ class RansacPlanes(Stage):
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         o = self.options
         xyz = cloud.xyz
-        height_above_ground = _height_above_local_minimum(xyz, o.ground_cell, ctx)
+        height_above_ground = _height_above_local_minimum(xyz, o.ground_cell, ctx, o.ground_slope)
         keep = np.ones(cloud.n, bool)
         planes = []
         cos_tilt = math.cos(math.radians(o.max_tilt_deg))

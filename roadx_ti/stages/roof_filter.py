@@ -55,6 +55,7 @@ from typing import Literal
 from pydantic import Field
 
 from roadx_ti.cloud import Cloud
+from roadx_ti.segments import segment_medians
 from roadx_ti.stages.base import (CLASS_BUILDING, CLASS_OTHER, Stage, StageContext, StageOptions, StageResult,
                                   estimate)
 
@@ -142,19 +143,6 @@ def occupied_density(xy: np.ndarray, cell: float) -> float:
     ij = np.floor((xy - xy.min(axis=0)) / cell).astype(np.int64)
     keys = ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1]
     return float(len(xy) / (len(np.unique(keys)) * cell * cell))
-
-
-def segment_medians(segment: np.ndarray, values: np.ndarray, count: int) -> np.ndarray:
-    """Median of ``values`` per segment id 0..count-1 (segment -1 ignored), float64."""
-    inside = segment >= 0
-    seg, val = segment[inside], values[inside].astype(np.float64)
-    order = np.lexsort((val, seg))
-    seg, val = seg[order], val[order]
-    starts = np.searchsorted(seg, np.arange(count))
-    stops = np.searchsorted(seg, np.arange(count), side="right")
-    lo = val[starts + (stops - starts - 1) // 2]
-    hi = val[starts + (stops - starts) // 2]
-    return (lo + hi) / 2
 
 
 def segment_widths(segment: np.ndarray, xy: np.ndarray, count: int) -> np.ndarray:
