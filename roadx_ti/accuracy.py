@@ -195,6 +195,20 @@ NOTES = {
         "E1 8.52 -> 4.93 %, held-out (1 M / 2 M seeds 40-49) mean E1 2.73 -> 2.37 %, 7 -> 5 scenes out of "
         "bounds; but the split groups fall under the 60 % share elsewhere (2 M seed 41 E1 1.14 -> 2.51 %) and "
         "matrix 1 M seed 1 E2 3.54 -> 4.40 %: not adopted.",
+        "Boundary kerb test (2026-12-05, not adopted): a region pair counted as a full kerb when the median raw "
+        "(unfiltered, slope-corrected) height step over all graph edges of its shared boundary lies within "
+        "[kerb_min, kerb_max] and at least z standard errors of a median (1.2533 x sqrt 2 x the height noise / "
+        "sqrt(edges)) from zero. z 4, E1 / E2 before -> after: 300 k seed 1 0.77 / 9.74 -> 5.47 / 2.23 %, 1 M "
+        "seed 1 1.26 / 3.54 -> 2.18 / 3.76 %, 2 M seed 41 1.14 / 4.15 -> 1.34 / 4.25 %, 2 M seed 42 1.41 / "
+        "4.41 -> 4.32 / 2.00 %, 2 M seed 48 2.77 / 3.30 -> 3.55 / 3.32 %, 1 M seed 41 0.80 / 11.33 -> 0.98 / "
+        "12.12 %; z 8: within 0.7 points of the base. Why it does not reach 1 M seed 41 (sidewalks taken as "
+        "road, E2 11.3 %): its sidewalks are regions of 400-800 points whose boundary with the road runs "
+        "through a strip of regions of 8-20 points along the kerb (lighter kerb stones, kerb-face points at "
+        "intermediate heights), so the step is split over two boundaries and the direct sidewalk-road pairs "
+        "show median raw steps of 0-1 cm (e.g. 37 edges); over the edges that cross the true road edge the "
+        "raw step is 6 cm (median; filtered 1.9 cm) at a height noise of 2.05 cm, kerb posterior mean 0.34. "
+        "A kerb test has to look across such strips (pairs of large regions within a few spacings), not "
+        "only at direct neighbours.",
         "The seconds column is wall time in process on the shared 2-core machine; the 2026-12-01 run "
         "shared it with two other jobs, so its times are inflated (benchmarks/RESULTS.md has the timed "
         "A/B).",
@@ -245,7 +259,7 @@ NOTES = {
         "component under 30 m2 away from the block's edge; the reviewed tile's rejected candidates "
         "(class 20) are 20-23 m2 of trees and hedges. The data do not support a single under-10 m2 "
         "rule either way, so the generator's sheds stay roof and min_roof_area stays 10 m2 with "
-        "annexes (2026-12-02)."
+        "annexes (2026-12-02).",
         "Small buildings (issue 16 point 6), the convention chosen (2026-12-04): structures under "
         "about 10 m2 on their own are not buildings. In ign_870000 the isolated small raised "
         "structures that are not foliage (single returns) are class 1 twice (4.2 and 2.5 m2, white, "
@@ -261,6 +275,19 @@ NOTES = {
         "against the roofs' own plane noise gained 0.004-0.009 on the merged block but lost on two "
         "tiles, not adopted), low buildings under the 2 m height test, and buildings cut by a tile's "
         "edge (2026-12-02).",
+        "Where the merged six-tile block's errors come from (2026-12-05, at d41802f, roof_filter's rules "
+        "traced point by point): of 11,218 false roof points 2,132 are in segments kept on their own (tree "
+        "crowns with flat single-return patches 11-20 m up), 2,579 in annexes (hedges 2-3 m high along "
+        "houses, 90-100 % single returns), 2,830 added by edge growth and 3,677 by footprint completion; "
+        "true / false points each rule adds: own 78,547 / 2,132, annex 7,069 / 2,579, edge 7,005 / 2,830, "
+        "footprint 10,664 / 3,677, so every rule is net positive. Of 6,070 missed roof points 1,824 are in "
+        "dropped segments (a low building of median height 1.77 m above a cloth raised at the block's edge, "
+        "a 245-point part of a building cut by the edge), 3,450 in no segment and 796 classed ground. The "
+        "annexes' single-plane residual (MAD) separates only at its top: every annex above 0.12 m is not "
+        "building (792 points), but building annexes reach 0.120 m, an absolute margin of 7 mm on one "
+        "sensor. LiDAR intensity is no transferable cue either: single-return vegetation against roof "
+        "medians per tile 1032 / 904, 1107 / 1318, 1131 / 914, 1137 / 1309, 1121 / 1225, 1146 / 1290 "
+        "(roofs brighter on four tiles, darker on two).",
     ],
 }
 
