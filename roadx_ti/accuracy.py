@@ -207,8 +207,18 @@ NOTES = {
         "intermediate heights), so the step is split over two boundaries and the direct sidewalk-road pairs "
         "show median raw steps of 0-1 cm (e.g. 37 edges); over the edges that cross the true road edge the "
         "raw step is 6 cm (median; filtered 1.9 cm) at a height noise of 2.05 cm, kerb posterior mean 0.34. "
-        "A kerb test has to look across such strips (pairs of large regions within a few spacings), not "
-        "only at direct neighbours.",
+        "A kerb test has to look across such strips, not only at direct neighbours. Tried next (same day): "
+        "pairs of regions of at least 50 points up to 4 graph edge lengths apart (kNN, k 32, among those "
+        "regions' points; strip regions left out), direct and across-strip pairs marked by the same median "
+        "test with the effective count capped by the smaller region's points (tiny regions formed by the "
+        "step veto are selected for being low: with 8-17 points and 22-64 edges they passed z 4 as kerbs "
+        "under road pieces and cut them off), across-strip pairs added to the cut as kerb-only pairs. 1 M "
+        "seed 41 E2 11.33 -> 6.27 %, 2 M seed 42 4.41 -> 1.80 %, 2 M seed 48 3.30 -> 2.48 %; but the matrix "
+        "(seeds 0-9 at 300 k / 1 M / 4 M) median E1 1.62 -> 1.79 %, 3 -> 5 scenes out of bounds (4 M seed 4 E1 "
+        "3.53 -> 6.12 %, 300 k seed 7 4.97 -> 5.09 %), AHN3 E2 0.67 -> 1.88 %; held-out (1 M / 2 M seeds 40-49) "
+        "mean E2 2.13 -> 1.62 % but mean E1 2.73 -> 2.97 % (2 M seed 44 8.52 -> 10.46 %), 7 -> 6 out of bounds; "
+        "4 M wall time about +20 % (the second kNN): not adopted. More kerbs trade sidewalks taken as road "
+        "for road pieces cut off, as every colour and kerb weight measured before did.",
         "The seconds column is wall time in process on the shared 2-core machine; the 2026-12-01 run "
         "shared it with two other jobs, so its times are inflated (benchmarks/RESULTS.md has the timed "
         "A/B).",
