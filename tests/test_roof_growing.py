@@ -853,9 +853,12 @@ def test_footprint_walls_join_and_a_hedge_beside_them_does_not(ti_arch):
 
 def test_superstructure_with_split_pulses_joins_its_roof(ti_arch):
     """No colour: the sides of a chimney and a rooftop unit split pulses (an earlier return on the
-    edge, the last on the roof), so the returns cue alone calls them foliage; standing among solid
-    returns within superstructure_height of the roof surface they join the roof (footprint
-    completion). A crown over the roof, whose points are nearly all split, stays out as before."""
+    edge, the last on the roof), so the returns cue alone calls them foliage; within
+    superstructure_height of the roof surface they join the roof (footprint completion), and so
+    does a vent so small that every return on it is split: most of its neighbours are split too, so
+    a majority test kept such vents out (the rule's misses on the six IGN tiles); a split return
+    with one solid neighbour stands at the edge of something solid. A crown over the roof's corner,
+    whose points have only foliage around them, stays out as before."""
     from roadx_ti.cloud import Cloud
 
     rng = np.random.default_rng(11)
@@ -872,11 +875,14 @@ def test_superstructure_with_split_pulses_joins_its_roof(ti_arch):
                                 cy - w / 2 + np.clip(u - w, 0, w) - np.clip(u - 3 * w, 0, w),
                                 rng.uniform(6.1, 6.0 + h - 0.1, len(u))])
         boxes += [top, side]
+    # a 0.6 m vent 0.55-0.9 m high at the survey's density: a few returns, every one split
+    vent = np.column_stack([rng.uniform(5.7, 6.3, 8), rng.uniform(7.7, 8.3, 8), rng.uniform(6.55, 6.9, 8)])
+    roof = roof[~((np.abs(roof[:, 0] - 6.0) < 0.3) & (np.abs(roof[:, 1] - 8.0) < 0.3))]
     crown = rng.normal([11.0, 8.5, 7.4], [1.0, 1.0, 0.5], (400, 3))
-    xyz = np.concatenate([roof] + boxes + [crown])
-    part = np.repeat([0, 1, 2, 1, 2, 3], [len(roof)] + [len(b) for b in boxes] + [len(crown)])
+    xyz = np.concatenate([roof] + boxes + [crown, vent])
+    part = np.repeat([0, 1, 2, 1, 2, 3, 4], [len(roof)] + [len(b) for b in boxes] + [len(crown), len(vent)])
     returns = np.ones((len(xyz), 2), np.uint8)
-    returns[part >= 2] = [1, 2]          # box sides and crown: the pulse went on
+    returns[part >= 2] = [1, 2]          # box sides, crown and vent: the pulse went on
     cloud = Cloud.from_world(xyz, origin=np.zeros(3), returns=returns)
     result, infos = run_roof_stages(cloud)
     building = result.labels == 6
@@ -885,7 +891,11 @@ def test_superstructure_with_split_pulses_joins_its_roof(ti_arch):
     assert building[part == 1].mean() > 0.9              # the boxes' tops (single returns)
     assert building[part == 2].mean() > 0.85             # their split sides
     assert building[part == 3].mean() < 0.2              # the crown over the roof's corner
+    assert building[part == 4].mean() > 0.85             # the vent, every return split
     before = run_roof_stages(cloud, {"superstructure_height": 0.0})[0].labels == 6
-    # without the rule (measured 0.73 of the sides against 0.92), the crown as before (0.03 / 0.04)
+    # without the rule (measured 0.73 of the sides against 0.92); the crown's fringe that touches the
+    # roof (split returns with a solid neighbour, within 1.5 m of its surface) joins: 0.075 of the
+    # crown against 0.033 without the rule (on the six IGN tiles 168 foliage points came with 964
+    # roof points gained)
     assert before[part == 2].mean() + 0.1 < building[part == 2].mean()
-    assert building[part == 3].mean() <= before[part == 3].mean() + 0.02
+    assert building[part == 3].mean() <= before[part == 3].mean() + 0.06

@@ -303,10 +303,11 @@ class RoofFilter(Stage):
             off_surface_ok = None
             if vegetation is not None:
                 vegetation = np.asarray(vegetation)
-                # not vegetation: anywhere; foliage returns only (no colour says so) where most of
-                # the point's neighbours are not: near the roof surface (the edges of chimneys,
-                # vents, railings split pulses as foliage does, but stand among solid returns);
-                # colour, or inside a canopy: on the surface only
+                # not vegetation: anywhere; foliage returns only (no colour says so) with at least one
+                # solid kNN neighbour: near the roof surface (chimneys, vents, railings split pulses
+                # as foliage does and stand on or among solid returns; on a small vent most neighbours
+                # are split too, so a majority test kept it off: ACCURACY.md's notes); colour, or
+                # inside a canopy (every neighbour foliage): on the surface only
                 near = (vegetation == VEGETATION_BY_RETURNS) & ~self._in_foliage(ctx, vegetation != 0)
                 off_surface_ok = np.where(vegetation == 0, 1, np.where(near, NEAR_SURFACE_ONLY, 0)).astype(np.uint8)
             eligible = None if height is None else \
@@ -336,7 +337,7 @@ class RoofFilter(Stage):
 
     @staticmethod
     def _in_foliage(ctx: StageContext, flagged: np.ndarray) -> np.ndarray:
-        """bool per point: at least half of its kNN neighbours (roof_seeds' graph) are flagged
+        """bool per point: every one of its kNN neighbours (roof_seeds' graph) is flagged
         vegetation; without the graph, every flagged point counts as in foliage."""
         knn = ctx.facts.get("knn")
         if knn is None or len(knn) != len(flagged):
@@ -344,7 +345,7 @@ class RoofFilter(Stage):
         knn = np.asarray(knn)
         valid = knn >= 0
         hits = (flagged[np.where(valid, knn, 0)] & valid).sum(axis=1)
-        return 2 * hits >= np.maximum(valid.sum(axis=1), 1)
+        return hits >= np.maximum(valid.sum(axis=1), 1)
 
     def footprint_cell_and_wall_reach(self, ctx: StageContext) -> tuple[float, float]:
         """(footprint cell, wall reach) in m, from the options and the survey's pulse spacing."""
