@@ -338,7 +338,8 @@ class RoofFilter(Stage):
     @staticmethod
     def _in_foliage(ctx: StageContext, flagged: np.ndarray) -> np.ndarray:
         """bool per point: every one of its kNN neighbours (roof_seeds' graph) is flagged
-        vegetation; without the graph, every flagged point counts as in foliage."""
+        vegetation (a point without neighbours is not); without the graph, every flagged point
+        counts as in foliage."""
         knn = ctx.facts.get("knn")
         if knn is None or len(knn) != len(flagged):
             return flagged.copy()
