@@ -14,7 +14,7 @@ cell, so ``slope_filter`` returns the same result either way.
 import numpy as np
 from .taichi_compat import ti
 
-from .common import INT32_MAX, f32_order_key, is_ndarray, kernel_array, like_input, ndarray, output_array
+from .common import INT32_MAX, f32_from_order_key, f32_order_key, is_ndarray, kernel_array, like_input, ndarray, output_array
 
 DENSE_CELLS_PER_POINT = 4
 DENSE_MIN_CELLS = 1 << 20
@@ -276,3 +276,36 @@ def slope_filter(xyz, step: float, slope_max: float, dh_max: float, origin=None,
     keep = output_array(ti.u8, (n,), xyz)
     _slope_test(pts, cell, cell_lowest, height, keep, float(slope_max), float(dh_max))
     return like_input(keep, xyz), like_input(height, xyz)
+
+
+@ti.kernel
+def _cell_max_z_key(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                    cell_max_z_key: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for i in cell:
+        ti.atomic_max(cell_max_z_key[cell[i]], f32_order_key(xyz[i, 2]))
+
+
+@ti.kernel
+def _overtopped(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), cell: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                cell_max_z_key: ti.types.ndarray(dtype=ti.i32, ndim=1), clearance: ti.f32,
+                out: ti.types.ndarray(dtype=ti.u8, ndim=1)):
+    for i in cell:
+        out[i] = ti.u8(f32_from_order_key(cell_max_z_key[cell[i]]) > xyz[i, 2] + clearance)
+
+
+def overtopped(xyz, step: float, clearance: float, origin=None):
+    """uint8 (n,): 1 where the highest point of the point's 2D cell of edge ``step`` (plan_cells:
+    dense or sparse ids, the same cells) stands more than ``clearance`` (m) above it: something
+    (a crown, an overhang) covers the point in a view from above. Integer atomics on the
+    order-preserving encoding of z: independent of point order and thread timing."""
+    pts = kernel_array(xyz, "float32")
+    n = int(pts.shape[0])
+    out = output_array(ti.u8, (n,), xyz)
+    if n:
+        cell, n_cells = plan_cells(pts, step, origin)
+        cell = kernel_array(cell, "int32")
+        top = ndarray(ti.i32, (n_cells,))
+        _fill_i32(top, -INT32_MAX - 1)
+        _cell_max_z_key(pts, cell, top)
+        _overtopped(pts, cell, top, float(clearance), out)
+    return like_input(out, xyz)

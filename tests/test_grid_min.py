@@ -108,3 +108,28 @@ def test_supported_reference_is_the_same_on_sparse_cells(ti_arch):
     far_keep, far_dh = grid_min.slope_filter(far, 0.5, 2.0, 0.5, outlier_gap=0.12)
     np.testing.assert_array_equal(far_dh[:n], dh)
     np.testing.assert_array_equal(far_keep[:n], keep)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_overtopped_equals_numpy_on_dense_and_sparse_cells(ti_arch, seed):
+    """A point is overtopped when its 2D cell's highest point stands more than the clearance above
+    it: equal to a numpy reference, the same with a stray point 500 km away (sparse cell ids) and
+    with the points shuffled."""
+    rng = np.random.default_rng(seed)
+    n = 4000
+    xyz = np.column_stack([rng.uniform(0, 20, n), rng.uniform(0, 20, n), rng.uniform(0, 4, n)]).astype(np.float32)
+    step, clearance = 0.7, 1.0
+    col = np.floor((xyz[:, 0] - xyz[:, 0].min()) / np.float32(step)).astype(np.int64)
+    row = np.floor((xyz[:, 1] - xyz[:, 1].min()) / np.float32(step)).astype(np.int64)
+    cell = row * (col.max() + 1) + col
+    top = np.full(cell.max() + 1, -np.inf, np.float32)
+    np.maximum.at(top, cell, xyz[:, 2])
+    expected = top[cell] > xyz[:, 2] + np.float32(clearance)
+    got = np.asarray(grid_min.overtopped(xyz, step, clearance)) != 0
+    np.testing.assert_array_equal(got, expected)
+    assert 0.2 < got.mean() < 0.8
+    far = np.concatenate([xyz, np.float32([[5e5, 5e5, 0.0]])])
+    assert not grid_min.dense_fits(far, step)
+    np.testing.assert_array_equal(np.asarray(grid_min.overtopped(far, step, clearance))[:n] != 0, expected)
+    order = rng.permutation(n)
+    np.testing.assert_array_equal(np.asarray(grid_min.overtopped(xyz[order], step, clearance)) != 0, expected[order])

@@ -65,6 +65,13 @@ def estimate(ctx: "StageContext", key: str, default=None):
     """A survey-wide estimate (see roadx_ti.estimates), or ``default`` when not measured."""
     value = ctx.facts.get(ESTIMATES, {}).get(key)
     return default if value is None else value
+
+
+def spacing_cell(ctx: "StageContext", spacings: float, min_cell: float, fallback: float) -> float:
+    """A plan cell (m) of ``spacings`` survey pulse spacings (the point spacing where the input has
+    no returns), at least ``min_cell``; ``fallback`` without a spacing estimate."""
+    spacing = estimate(ctx, "pulse_spacing_m") or estimate(ctx, "point_spacing_m")
+    return max(spacings * float(spacing), min_cell) if spacing else fallback
 # ctx.facts key: number of points of the whole survey a cloud was cut from (tiled runs)
 SURVEY_POINTS = "survey_points"
 # ctx.facts key (and a name in requires / provides): the GroundSurface of the last ground stage

@@ -57,7 +57,7 @@ from pydantic import Field
 from roadx_ti.cloud import Cloud
 from roadx_ti.segments import segment_medians
 from roadx_ti.stages.base import (CLASS_BUILDING, CLASS_OTHER, Stage, StageContext, StageOptions, StageResult,
-                                  estimate)
+                                  estimate, spacing_cell)
 
 
 class RoofFilterOptions(StageOptions):
@@ -353,9 +353,7 @@ class RoofFilter(Stage):
         o = self.options
         cell = o.footprint_cell
         if cell == "auto":
-            spacing = estimate(ctx, "pulse_spacing_m") or estimate(ctx, "point_spacing_m")
-            cell = max(o.footprint_spacings * float(spacing), o.footprint_min_cell) if spacing \
-                else FALLBACK_FOOTPRINT_CELL
+            cell = spacing_cell(ctx, o.footprint_spacings, o.footprint_min_cell, FALLBACK_FOOTPRINT_CELL)
         cell = float(cell)
         wall = cell if o.wall_reach == "cell" else float(o.wall_reach)
         return cell, wall

@@ -22,10 +22,14 @@ too. info 'vegetation_cue' says which cues ran: 'rgb_com', 'ndvi', 'returns' joi
 'none'.
 Writes point_data 'roof_segment' (int32, compact ids, -1 = none), 'edge_may_join' (uint8: no
 vegetation cue of this stage, colour or foliage return, and not isolated: the points roof_filter's
-edge completion may add), 'edge_may_join_all' (the same without the returns rule) and, with the colour rule or returns on, 'vegetation' (uint8 bits: 1 COM >
+edge completion may add; the colour cue does not count for a covered point, one the highest point
+of its plan cell overtops by more than covered_clearance: its orthophoto colour is that of the
+crown over it, and a roof under a crown is roof), 'edge_may_join_all' (the same without the returns rule) and, with the colour rule or returns on, 'vegetation' (uint8 bits: 1 COM >
 com_threshold or NDVI, 2 such a foliage return) for roof_filter's annex and footprint tests.
 """
 from __future__ import annotations
+
+from typing import Literal
 
 import numpy as np
 from pydantic import Field
@@ -37,7 +41,10 @@ from roadx_ti.kernels.vegetation import DEFAULT_COM_THRESHOLD
 # point_data 'vegetation' bits: the colour cue (COM or NDVI) and the foliage-returns cue
 VEGETATION_BY_COLOUR = 1
 VEGETATION_BY_RETURNS = 2
-from roadx_ti.stages.base import MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
+from roadx_ti.stages.base import MIN_BUFFER, Stage, StageContext, StageOptions, StageResult, spacing_cell
+# covered_cell 'auto': as roof_filter's footprint cell (footprint_spacings, footprint_min_cell, and
+# its cell without a spacing estimate)
+COVERED_SPACINGS, COVERED_MIN_CELL, COVERED_FALLBACK_CELL = 3.0, 0.5, 1.0
 
 
 class RoofGrowingOptions(StageOptions):
@@ -67,6 +74,15 @@ class RoofGrowingOptions(StageOptions):
                               "returns_exempt_curvature) joins no roof")
     returns_exempt_curvature: float = Field(0.005, gt=0, description="points with curvature below this "
                                             "(unitless) are exempt from the returns rule (roof edges)")
+    covered_clearance: float = Field(1.0, ge=0, description="a point that the highest point of its plan "
+                                     "cell (covered_cell) overtops by more than this (m, at least one cell "
+                                     "edge: a roof of up to 45 degrees rises that much within a cell) is "
+                                     "covered, and its orthophoto colour is that of what covers it (a crown "
+                                     "over a roof): the colour cue does not keep it off roof_filter's edge "
+                                     "completion, whose plane and support tests still decide; 0 = off")
+    covered_cell: float | Literal["auto"] = Field("auto", description="plan cell of the covered test (m); "
+                                                  "'auto': 3 survey pulse spacings, at least 0.5 m "
+                                                  "(roof_filter's footprint cell)")
 
 
 class RoofGrowing(Stage):
@@ -151,7 +167,13 @@ class RoofGrowing(Stage):
         # roof_filter's edge completion: points no vegetation cue or isolation keeps off a roof
         may_join = np.ones(n, bool)
         if "vegetation" in edge_colour:
-            may_join &= np.asarray(edge_colour["vegetation"]) == 0
+            coloured = np.asarray(edge_colour["vegetation"]) != 0
+            if o.covered_clearance > 0 and coloured.any():
+                # the colour of a covered point is its cover's (a crown over a roof)
+                covered = coloured & self._covered(cloud, ctx)
+                info["covered_coloured_points"] = int(np.count_nonzero(covered))
+                coloured &= ~covered
+            may_join &= ~coloured
         may_join_all = may_join.copy() if isolated is None else may_join & ~isolated   # returns too
         if active is not None:
             may_join &= np.asarray(active) != 0
@@ -166,3 +188,12 @@ class RoofGrowing(Stage):
             info["foliage_returns"] = int(np.count_nonzero(foliage_returns))
         return StageResult(point_data=point_data, segment_id=segment, info=info)
 
+    def _covered(self, cloud: Cloud, ctx: StageContext) -> np.ndarray:
+        """bool per point: overtopped in its plan cell by more than the clearance (kernels
+        grid_min.overtopped)."""
+        from roadx_ti.kernels.grid_min import overtopped
+
+        o = self.options
+        cell = spacing_cell(ctx, COVERED_SPACINGS, COVERED_MIN_CELL, COVERED_FALLBACK_CELL) \
+            if o.covered_cell == "auto" else float(o.covered_cell)
+        return np.asarray(overtopped(cloud.xyz, cell, max(o.covered_clearance, cell))) != 0
