@@ -527,8 +527,18 @@ def cmd_bench(args) -> int:
 def cmd_synth(args) -> int:
     from roadx_ti import io, synthetic
 
+    from roadx_ti import memory
+
     out = Path(args.output)
     _prepare_output(out, [])
+    # a scene is made whole in memory: refuse one that cannot fit before laying it out (1e12
+    # for 1e7 would otherwise lay out a city for minutes, then fail)
+    ok, need, budget = memory.fits("synth", args.points)
+    if not ok:
+        raise UsageError(f"a synthetic scene of {args.points:,} points needs about "
+                         f"{memory.format_size(need * memory.SAFETY)} of memory, more than the "
+                         f"{memory.format_size(budget)} this run may use: write a smaller scene, or "
+                         "several (other seeds) into one folder, which runs as a catalog")
     try:
         cloud = synthetic.generate(args.kind, args.points, args.seed)
     except ValueError as exc:

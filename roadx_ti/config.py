@@ -301,13 +301,17 @@ def load(path: str | Path, overrides: list[str] = ()) -> RunConfig:
     if not path.is_file():
         raise ConfigError(f"config file {path} does not exist")
     try:
-        raw = yaml.load(path.read_text(), Loader=_UniqueKeyLoader) or {}
+        raw = yaml.load(path.read_text(), Loader=_UniqueKeyLoader)
     except ConfigError as exc:
         raise ConfigError(f"config file {path}: {exc}") from None
     except yaml.YAMLError as exc:
         where = getattr(exc, "problem_mark", None)
         at = f" at line {where.line + 1}" if where else ""
         raise ConfigError(f"config file {path} is not valid YAML{at}") from None
+    if raw is None:
+        # an empty (or truncated to nothing) file is a mistake, not "every default": say so
+        raise ConfigError(f"config file {path} is empty: a config names at least its pipeline "
+                          "(pipeline: road | roof | ground; see the files in configs/)")
     if not isinstance(raw, dict):
         raise ConfigError(f"config file {path} must hold a mapping of keys, got {type(raw).__name__}")
     return from_mapping(raw, overrides)

@@ -299,6 +299,21 @@ def case_empty_stage_list(d):
     return _run(config, d, src, code=2, message="stages: the list is empty")
 
 
+def case_empty_config(d):
+    """An empty config file (or one truncated to nothing) is a mistake, not "every default": exit 2."""
+    config = d / "in" / "empty.yaml"
+    config.write_text("")
+    return _run(config, d, write_las(d / "in" / "ground.las", bumpy_ground(500)), code=2, message="is empty")
+
+
+def case_synth_beyond_memory(d):
+    """``synth --points 1e12`` (meant: 1e7) is refused at once with the memory the scene would need,
+    instead of laying out a city for minutes and then failing: exit 2, nothing written."""
+    out = d / "out" / "scene.laz"
+    return Case(args=["synth", "--kind", "uav-road", "--points", "1e12", "-o", out], code=2,
+                message="needs about", output=out, max_seconds=60)
+
+
 def case_zero_cell_size(d):
     """grid_slope.step = 0: exit 2 before any work, the key named."""
     src = _ground_laz(d)
