@@ -557,3 +557,14 @@ def test_too_many_points_points_to_tiling(tmp_path):
     raw[107:111] = np.uint32(3_000_000_000).tobytes()    # legacy point count in the LAS 1.2 header
     src.write_bytes(bytes(raw))
     assert "tiles" in one_line_error(src, io.read, src)
+
+
+def test_text_with_a_ragged_row_names_the_row_not_numpy_advice(tmp_path):
+    """A text table whose column count changes says where, without numpy's advice to programmers."""
+    path = tmp_path / "ragged.txt"
+    path.write_text("1 2 3\n4 5 6\n7 8\n")
+    with pytest.raises(InputError) as err:
+        io.read(path)
+    message = str(err.value)
+    assert "not a point table" in message and "row 3" in message
+    assert "usecols" not in message and "\n" not in message

@@ -457,7 +457,9 @@ def read_text(path, origin=None) -> Cloud:
         table = np.loadtxt(path, dtype=np.float64, delimiter=delimiter, skiprows=skip,
                            ndmin=2, usecols=columns, **_quoting(path, skip))
     except ValueError as exc:
-        raise fail(path, f"not a point table ({' '.join(str(exc).split())})") from None
+        # numpy's reason without its advice to the programmer ("use `usecols` ...")
+        reason = " ".join(str(exc).split()).split("; use `usecols`")[0]
+        raise fail(path, f"not a point table ({reason})") from None
     if table.size == 0:
         table = np.zeros((0, len(names) if names else 3))
     width = table.shape[1]
