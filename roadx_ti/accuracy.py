@@ -219,6 +219,15 @@ NOTES = {
         "mean E2 2.13 -> 1.62 % but mean E1 2.73 -> 2.97 % (2 M seed 44 8.52 -> 10.46 %), 7 -> 6 out of bounds; "
         "4 M wall time about +20 % (the second kNN): not adopted. More kerbs trade sidewalks taken as road "
         "for road pieces cut off, as every colour and kerb weight measured before did.",
+        "Two-sided kerb steps (2026-12-05, not adopted): per graph edge, the median slope-corrected height "
+        "of the end points' neighbours on b's side of the edge's bisector minus that on a's side, in place "
+        "of the filtered heights' difference. 300 k seed 1, edges crossing the road / not-road line: median "
+        "oriented step 5.6 cm against 2.3 cm filtered (6.0 cm raw), but the spread over all edges 2.5 cm "
+        "(neighbourhoods of k 12) or 2.0 cm (k 32) against 1.1 cm: z about 2.2-2.8 either way. Run in place "
+        "of the filtered steps (k 12), 300 k seeds 1 / 2 / 3 E2 9.74 / 2.02 / 2.33 -> 14.08 / 11.00 / "
+        "21.59 %. A region test, the median height of a road region's points above the other road regions' "
+        "points within 1 m in plan, removes nothing in 300 k seed 1: the false sidewalk is itself many "
+        "regions whose 1 m neighbourhoods are mostly other sidewalk regions (medians 0.001-0.011 m).",
         "The seconds column is wall time in process on the shared 2-core machine; the 2026-12-01 run "
         "shared it with two other jobs, so its times are inflated (benchmarks/RESULTS.md has the timed "
         "A/B).",
