@@ -446,6 +446,9 @@ def _expand_patterns(paths: list[str]) -> list[str]:
     for p in paths:
         matches = _matches(p)
         if matches is None and not Path(p).exists():
+            if p == "-":
+                raise ConfigError("config error: input.paths = '-': reading points from standard input is "
+                                  "not supported; give a file, a folder or a wildcard pattern")
             raise ConfigError(f"config error: input.paths = {p!r}: no such file")
         if matches == []:
             raise ConfigError(f"config error: input.paths = {p!r}: no file matches the pattern")

@@ -306,6 +306,11 @@ def case_empty_config(d):
     return _run(config, d, write_las(d / "in" / "ground.las", bumpy_ground(500)), code=2, message="is empty")
 
 
+def case_input_from_standard_input(d):
+    """``--input -`` (standard input, as some tools take it) is not supported: exit 2, saying so."""
+    return _tiny(d, "-", code=2, message="standard input is not supported")
+
+
 def case_synth_beyond_memory(d):
     """``synth --points 1e12`` (meant: 1e7) is refused at once with the memory the scene would need,
     instead of laying out a city for minutes and then failing: exit 2, nothing written."""
