@@ -399,6 +399,10 @@ def _run_tiled(cfg, out: Path, args) -> int:
         _make_parent(out)
         io.check_output_path(out, [f.path for f in tiling.catalog(cfg.input.paths, warn=False)])
     else:
+        if out.suffix.lower() in io.EXTENSIONS and not out.is_dir():
+            # one file per input goes into a folder: a name like x.laz was meant as a file
+            raise UsageError(f"{out}: output.mode per-file writes one file per input into a folder; "
+                             "give a folder (e.g. --output out/) or use output.mode merged for one file")
         out.mkdir(parents=True, exist_ok=True)
     try:
         summary = tiling.run_catalog(cfg, cfg.input.paths, out, workers=cfg.executor.workers,

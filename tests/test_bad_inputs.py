@@ -311,6 +311,13 @@ def case_input_from_standard_input(d):
     return _tiny(d, "-", code=2, message="standard input is not supported")
 
 
+def case_per_file_output_named_like_a_file(d):
+    """``output.mode per-file`` with ``--output result.laz``: one file per input goes into a folder, so
+    a file name is refused (it was made a folder called result.laz): exit 2, nothing made."""
+    tiles = _tiles_folder(d)
+    return _tiny(d, tiles, extra=["--set", "output.mode=per-file"], code=2, message="give a folder")
+
+
 def case_synth_beyond_memory(d):
     """``synth --points 1e12`` (meant: 1e7) is refused at once with the memory the scene would need,
     instead of laying out a city for minutes and then failing: exit 2, nothing written."""
