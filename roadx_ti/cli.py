@@ -532,9 +532,7 @@ def cmd_bench(args) -> int:
 
 # ------------------------------------------------------------------------------------- synth
 def cmd_synth(args) -> int:
-    from roadx_ti import io, synthetic
-
-    from roadx_ti import memory
+    from roadx_ti import io, memory, synthetic
 
     out = Path(args.output)
     _prepare_output(out, [])

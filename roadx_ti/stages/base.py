@@ -67,11 +67,19 @@ def estimate(ctx: "StageContext", key: str, default=None):
     return default if value is None else value
 
 
+def survey_spacing(ctx: "StageContext"):
+    """The survey's pulse spacing (m), or its point spacing where the input has no returns; None
+    when neither was measured."""
+    return estimate(ctx, "pulse_spacing_m") or estimate(ctx, "point_spacing_m")
+
+
 def spacing_cell(ctx: "StageContext", spacings: float, min_cell: float, fallback: float) -> float:
-    """A plan cell (m) of ``spacings`` survey pulse spacings (the point spacing where the input has
-    no returns), at least ``min_cell``; ``fallback`` without a spacing estimate."""
-    spacing = estimate(ctx, "pulse_spacing_m") or estimate(ctx, "point_spacing_m")
+    """A plan cell (m) of ``spacings`` survey spacings (survey_spacing), at least ``min_cell``;
+    ``fallback`` without a spacing estimate."""
+    spacing = survey_spacing(ctx)
     return max(spacings * float(spacing), min_cell) if spacing else fallback
+
+
 # ctx.facts key: number of points of the whole survey a cloud was cut from (tiled runs)
 SURVEY_POINTS = "survey_points"
 # ctx.facts key (and a name in requires / provides): the GroundSurface of the last ground stage

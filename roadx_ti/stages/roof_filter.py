@@ -57,7 +57,18 @@ from pydantic import Field
 from roadx_ti.cloud import Cloud
 from roadx_ti.segments import segment_medians
 from roadx_ti.stages.base import (CLASS_BUILDING, CLASS_OTHER, Stage, StageContext, StageOptions, StageResult,
-                                  estimate, spacing_cell)
+                                  estimate, spacing_cell, survey_spacing)
+
+# footprint_cell 'auto': FOOTPRINT_SPACINGS survey spacings, at least FOOTPRINT_MIN_CELL (m), and
+# FALLBACK_FOOTPRINT_CELL without a spacing estimate (roof_growing's covered test uses the same cell)
+FOOTPRINT_SPACINGS = 3.0
+FOOTPRINT_MIN_CELL = 0.5
+FALLBACK_FOOTPRINT_CELL = 1.0
+
+
+def default_footprint_cell(ctx: StageContext) -> float:
+    """The footprint cell (m) of roof_filter's default options."""
+    return spacing_cell(ctx, FOOTPRINT_SPACINGS, FOOTPRINT_MIN_CELL, FALLBACK_FOOTPRINT_CELL)
 
 
 class RoofFilterOptions(StageOptions):
@@ -113,12 +124,12 @@ class RoofFilterOptions(StageOptions):
     footprint_cell: float | Literal["auto"] = Field("auto", description="grid cell of the roof "
                                                     "footprints (m); 'auto': footprint_spacings x the "
                                                     "survey's measured pulse spacing (1 m without it)")
-    footprint_spacings: float = Field(3.0, gt=0, description="footprint_cell 'auto' in measured pulse "
+    footprint_spacings: float = Field(FOOTPRINT_SPACINGS, gt=0, description="footprint_cell 'auto' in measured pulse "
                                       "spacings (unitless): a roof's cells are then all occupied while "
                                       "its outline stays within about one cell of the true one (a 1 m "
                                       "cell with a 1 m wall reach on the six IGN tiles: hedges and bushes "
                                       "by the walls joined, mean kappa 0.876 against 0.897)")
-    footprint_min_cell: float = Field(0.5, gt=0, description="smallest 'auto' footprint cell (m): about "
+    footprint_min_cell: float = Field(FOOTPRINT_MIN_CELL, gt=0, description="smallest 'auto' footprint cell (m): about "
                                       "the eaves' overhang, the distance of a wall inside its roof's outline")
     inside_reach: float = Field(3.0, ge=0, description="a point is inside a footprint when roof "
                                 "cells lie this close (m) in all four axis directions; covers "
@@ -184,7 +195,6 @@ def annex_segments(segment: np.ndarray, xy: np.ndarray, kept: np.ndarray, candid
     return touching & candidate
 
 
-FALLBACK_FOOTPRINT_CELL = 1.0   # m: footprint_cell 'auto' without a spacing estimate
 NOISE_SAMPLE = 20_000   # planar roof points the roofs' plane noise is measured on (at most)
 
 
@@ -368,7 +378,7 @@ class RoofFilter(Stage):
         knn = ctx.facts.get("knn")
         if knn is None or len(knn) != cloud.n or "normal" not in ctx.point_data or "curvature" not in ctx.point_data:
             return segment, roof, None
-        spacing, source = estimate(ctx, "pulse_spacing_m") or estimate(ctx, "point_spacing_m"), "estimates"
+        spacing, source = survey_spacing(ctx), "estimates"
         if not spacing:
             # the nearest of the k neighbours' distances, median, as the plan nearest-neighbour
             # distance of a uniform sample of that density (0.5 / sqrt(density))

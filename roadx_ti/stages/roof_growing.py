@@ -41,10 +41,7 @@ from roadx_ti.kernels.vegetation import DEFAULT_COM_THRESHOLD
 # point_data 'vegetation' bits: the colour cue (COM or NDVI) and the foliage-returns cue
 VEGETATION_BY_COLOUR = 1
 VEGETATION_BY_RETURNS = 2
-from roadx_ti.stages.base import MIN_BUFFER, Stage, StageContext, StageOptions, StageResult, spacing_cell
-# covered_cell 'auto': as roof_filter's footprint cell (footprint_spacings, footprint_min_cell, and
-# its cell without a spacing estimate)
-COVERED_SPACINGS, COVERED_MIN_CELL, COVERED_FALLBACK_CELL = 3.0, 0.5, 1.0
+from roadx_ti.stages.base import MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
 
 
 class RoofGrowingOptions(StageOptions):
@@ -192,8 +189,8 @@ class RoofGrowing(Stage):
         """bool per point: overtopped in its plan cell by more than the clearance (kernels
         grid_min.overtopped)."""
         from roadx_ti.kernels.grid_min import overtopped
+        from roadx_ti.stages.roof_filter import default_footprint_cell
 
         o = self.options
-        cell = spacing_cell(ctx, COVERED_SPACINGS, COVERED_MIN_CELL, COVERED_FALLBACK_CELL) \
-            if o.covered_cell == "auto" else float(o.covered_cell)
+        cell = default_footprint_cell(ctx) if o.covered_cell == "auto" else float(o.covered_cell)
         return np.asarray(overtopped(cloud.xyz, cell, max(o.covered_clearance, cell))) != 0

@@ -17,7 +17,7 @@ from pydantic import Field
 
 from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
-from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult, estimate
+from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult, survey_spacing
 
 
 class RoofSeedsOptions(StageOptions):
@@ -125,7 +125,7 @@ class RoofSeeds(Stage):
             ctx.log.warning("roof_seeds: k = %d but only %d points: using k = %d", o.k, n, k)
         r_max, r_max_source = o.r_max, "option"
         if r_max == "auto":
-            spacing = estimate(ctx, "pulse_spacing_m") or estimate(ctx, "point_spacing_m")
+            spacing = survey_spacing(ctx)
             r_max_source = "auto"
             if not spacing:
                 spacing = _spacing_of(cloud.xyz)
