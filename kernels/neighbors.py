@@ -278,7 +278,9 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
         c = ti.math.ivec3(scell[a, 0], scell[a, 1], scell[a, 2])
         run_lo = ti.Vector([0] * 27, ti.i32)
         run_hi = ti.Vector([0] * 27, ti.i32)
-        run_at = ti.Vector([0] * 27, ti.i32)          # the run's cell offset, packed
+        run_dx = ti.Vector([0] * 27, ti.i32)          # the run's cell offset + 1 per axis
+        run_dy = ti.Vector([0] * 27, ti.i32)
+        run_dz = ti.Vector([0] * 27, ti.i32)
         n_runs = 0
         # own cell, then the 6 face, 12 edge and 8 corner neighbours: near candidates first,
         # so the list's k-th tightens early and most later candidates fail one comparison
@@ -292,26 +294,35 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
                     if rg[1] > rg[0]:
                         run_lo[n_runs] = rg[0]
                         run_hi[n_runs] = rg[1]
-                        run_at[n_runs] = t
+                        run_dx[n_runs] = d[0] + 1
+                        run_dy[n_runs] = d[1] + 1
+                        run_dz[n_runs] = d[2] + 1
                         n_runs += 1
         prev_q = ti.math.vec3(0.0)
         prev_kth = ti.math.inf
+        # one list for all the cell's queries: slots at or beyond a query's size are never read
+        best = ti.Vector([0] * SMALL_K, ti.i64)
         for s in range(a, b):
             q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
             u = (q - ti.math.vec3(ox, oy, oz)) * inv_cell
             # the previous query's k nearest plus that query itself are k points other than q
             # within prev_kth + |q - prev_q|: a bound that rejects most candidates up front
             bound = (prev_kth + (q - prev_q).norm()) * 1.00001 + 1e-30
-            best = ti.Vector([0] * SMALL_K, ti.i64)
             size = 0
             # cells are tested in squared cell units: no square root per cell and candidate
             frac = u - ti.cast(c, ti.f32)
             margin = _box_margin(u)
             bound_sq = bound * bound * inv_cell * inv_cell
+            # squared gaps to the cells before, at and after the query's along each axis
+            # (_box_gap_sq's terms): a run's gap is three look-ups and two additions
+            below = ti.max(frac - margin, 0.0)
+            above = ti.max(1.0 - frac - margin, 0.0)
+            gap_x = ti.Vector([below[0] * below[0], 0.0, above[0] * above[0]])
+            gap_y = ti.Vector([below[1] * below[1], 0.0, above[1] * above[1]])
+            gap_z = ti.Vector([below[2] * below[2], 0.0, above[2] * above[2]])
             for r in range(n_runs):
-                t = run_at[r]
-                d = ti.math.ivec3(t % 3 - 1, (t // 3) % 3 - 1, t // 9 - 1)
-                if _box_gap_sq(frac, d, margin) <= _reach_sq(best, size, k, bound_sq, inv_cell):
+                gap_sq = gap_x[run_dx[r]] + gap_y[run_dy[r]] + gap_z[run_dz[r]]
+                if gap_sq <= _reach_sq(best, size, k, bound_sq, inv_cell):
                     size = _offer_run(run_lo[r], run_hi[r], s, q, best, size, k, order, sxyz, bound)
             settled = 0
             if size == k and _kth_distance(best, k) < _safe_radius(u, c, 1, cell_size):

@@ -1,0 +1,82 @@
+"""kNN (kernels/neighbors.py) at one commit against this checkout, in one process.
+
+    python benchmarks/commit_ab/knn_ab.py --base REV [--points 1M,4M] [--k 16] [--rounds 5]
+
+Loads ``kernels/neighbors.py`` as it is at REV beside this checkout's (as a sibling module of
+``roadx_ti.kernels``, so both use this checkout's grid, scan and common modules: for a change
+confined to neighbors.py), then on the bench's uav-road scene (seed 0) times ``knn(xyz, k)`` of
+each in alternating rounds after one warm-up call each, and checks that both return the same
+indices and distances bit for bit. Prints medians and the base / new ratio per round.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO))
+
+
+def _size(text: str) -> int:
+    return int(float(text[:-1]) * 1e6) if text[-1] in "Mm" else int(float(text))
+
+
+def load_base(rev: str):
+    """kernels/neighbors.py at ``rev`` as module roadx_ti.kernels._neighbors_base."""
+    source = subprocess.run(["git", "-C", str(REPO), "show", f"{rev}:kernels/neighbors.py"],
+                            capture_output=True, text=True, check=True).stdout
+    # Taichi reads a kernel's source through inspect: the module must live in a real file
+    path = Path(tempfile.mkdtemp(prefix="knn_ab_")) / "_neighbors_base.py"
+    path.write_text(source)
+    spec = importlib.util.spec_from_file_location("roadx_ti.kernels._neighbors_base", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--base", required=True, help="git revision of the base kernels/neighbors.py")
+    ap.add_argument("--points", default="1M,4M")
+    ap.add_argument("--k", type=int, default=16)
+    ap.add_argument("--rounds", type=int, default=5)
+    args = ap.parse_args()
+
+    from roadx_ti import backend, synthetic
+    backend.init("cpu")
+    from roadx_ti.kernels import neighbors as new
+    base = load_base(args.base)
+    head = subprocess.run(["git", "-C", str(REPO), "describe", "--always", "--dirty"], capture_output=True,
+                          text=True, check=True).stdout.strip()
+    print(f"kNN k={args.k}, base {args.base} against {head}, {args.rounds} alternating rounds (base, new)")
+    print("| points | base median | new median | base / new per round | identical |")
+    print("|---|---:|---:|---|---|")
+    for size in args.points.split(","):
+        n = _size(size)
+        xyz = np.ascontiguousarray(synthetic.generate("uav-road", n, 0).xyz, np.float32)
+        results = {}
+        for tag, module in (("base", base), ("new", new)):
+            results[tag] = module.knn(xyz, args.k)              # warm-up: compile, first touch
+        same = all(np.array_equal(a, b) for a, b in zip(results["base"], results["new"]))
+        del results
+        times = {"base": [], "new": []}
+        for _ in range(args.rounds):
+            for tag, module in (("base", base), ("new", new)):
+                t0 = time.perf_counter()
+                module.knn(xyz, args.k)
+                times[tag].append(time.perf_counter() - t0)
+        ratios = ", ".join(f"{b / a:.3f}" for b, a in zip(times["base"], times["new"]))
+        print(f"| {size} | {np.median(times['base']):.3f} s | {np.median(times['new']):.3f} s | {ratios} | "
+              f"{'yes' if same else 'NO'} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
