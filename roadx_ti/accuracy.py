@@ -421,6 +421,10 @@ def datasets(task: str, sizes=ROOF_SIZES, seeds=ROOF_SEEDS):
         # sparse real ALS: one large building at 2.3 points/m2 (PDAL's test data)
         rows.append(("sample_c (2.3 points/m2)", lambda: io.read(SHARED_DATA / "smoke" / "sample_c.las"), [6],
                      "roof_als.yaml"))
+        # another country and labeller (AHN3, Amsterdam: class 6 is the building, walls included),
+        # scored as it comes; no roof setting was chosen on it
+        rows.append(("AHN3 ahn3_2386_9702 (Netherlands, no colour)",
+                     lambda: io.read(SHARED_DATA / "road" / "ahn3_2386_9702_roads.laz"), [6], "roof_als.yaml"))
         for points in sizes:
             for seed in seeds:
                 rows.append((f"synthetic als-roof {_size_name(points)} seed {seed}",
