@@ -160,7 +160,9 @@ def _quicker_kernel_transforms():
     def _inside_class(level_of_class_stackframe):
         try:
             frame = sys._getframe(level_of_class_stackframe)
-            text = linecache.getline(frame.f_code.co_filename, frame.f_lineno, frame.f_globals)
+            filename = frame.f_code.co_filename
+            linecache.checkcache(filename)    # as inspect does: a file changed on disk is read anew
+            text = linecache.getline(filename, frame.f_lineno, frame.f_globals)
         except Exception:                 # as Taichi's: no frame there means not in a class
             return False
         if not text:
