@@ -1,7 +1,9 @@
 """The road pipeline gives the same road whatever the delivery of one scene (issue: adaptive road
 extraction, point 4): in memory, through LAZ at 1 mm and 1 cm coordinate scale, with 8-bit
 instead of 16-bit colour, with its points shuffled, and thinned to half its density. Labels
-agree on >= 99.5 % of the points the two runs share and E1 / E2 move by less than 1 point."""
+agree on >= 99.5 % of the points the two runs share and E1 / E2 move by less than 1 point. Also: the
+road is found (the issue's per-scene bounds) when the whole orthophoto is darker, brighter in its
+mid-tones or tinted (test_road_found_whatever_the_exposure)."""
 from __future__ import annotations
 
 import numpy as np
@@ -77,3 +79,33 @@ def test_same_road_whatever_the_delivery_cpu(scenes, variant, tmp_path):
 def test_same_road_whatever_the_delivery_vulkan(scenes, variant, tmp_path):
     """A subset of the deliveries on a 200 k-point scene: lavapipe runs Vulkan on the CPU, slowly."""
     _check_delivery("vulkan", scenes["vulkan"], variant, tmp_path)
+
+
+# Photometric changes of the whole orthophoto (another camera, exposure or white balance): the road
+# must not hinge on absolute colours. Measured on this scene (CPU, road_uav.yaml, 2026-12-05), E1 / E2
+# and agreement with the unchanged colours (base 0.72 / 2.02 %): exposure x 0.7 0.79 / 0.68 % 98.95 %,
+# gamma 0.7 0.74 / 0.65 % 98.90 %, warm cast 1.48 / 0.56 % 98.63 %; the disagreement is mostly the
+# sidewalk piece of the knife-edge comment above (on 300 k seed 0 and 3 and 1 M seed 2 the same changes
+# agree on 99.26-99.95 %).
+PHOTOMETRIC = {
+    "exposure_x0.7": lambda rgb, top: rgb * 0.7,
+    "gamma_0.7": lambda rgb, top: top * (rgb / top) ** 0.7,
+    "warm_cast": lambda rgb, top: rgb * np.array([1.08, 1.0, 0.92]),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("change", list(PHOTOMETRIC))
+def test_road_found_whatever_the_exposure(scenes, change):
+    switch_backend("cpu")
+    scene = scenes["cpu"]
+    if "cpu" not in _BASELINE:
+        _BASELINE["cpu"] = _road(scene)
+    top = 65535.0 if scene.color_depth == 16 else 255.0
+    rgb = np.clip(np.round(PHOTOMETRIC[change](scene.rgb.astype(np.float64), top)), 0, top)
+    changed = Cloud(xyz=scene.xyz, origin=scene.origin, rgb=rgb.astype(scene.rgb.dtype), color_depth=scene.color_depth,
+                    intensity=scene.intensity, returns=scene.returns, classification=scene.classification)
+    road = _road(changed)
+    e1, e2 = _scores(metrics.class_mask(scene.classification, [11]), road)
+    assert e1 <= 5.0 and e2 <= 3.0, (change, e1, e2)        # the road issue's per-scene bounds
+    assert np.mean(road == _BASELINE["cpu"]) >= 0.98, change
