@@ -86,8 +86,8 @@ def description() -> str:
 def _quicker_kernel_transforms():
     """Taichi 1.7.4 redoes Python-side work in every process, offline cache or not, that gives the
     same result each time; three of its helpers are replaced here by ones that return exactly what
-    Taichi's own return, faster (a road CLI run of 50 k points 8.4 -> 7.6 s, of 1 M points
-    12.9 -> 11.5 s: benchmarks/RESULTS.md). tests/test_taichi_compat.py runs both versions on every call a road and
+    Taichi's own return, faster (a road CLI run of 50 k points 8.5 -> 7.3 s, of 1 M points
+    11.4 -> 10.5 s: benchmarks/RESULTS.md). tests/test_taichi_compat.py runs both versions on every call a road and
     a roof pipeline make and compares the results. taichi-forge caches these itself and is left as
     it is. Returns {name: Taichi's own function} ({} when not taichi 1.7.4).
 
@@ -97,12 +97,14 @@ def _quicker_kernel_transforms():
       (Taichi's source lines carry no trailing blanks), so the excerpt is formatted directly; other
       nodes take Taichi's method once per position (a ti.func is transformed again at every call).
     - ``kernel_impl.getsourcelines``: the source of each kernel and ti.func, read again (inspect,
-      tokenize) at every transform; kept per function object and code object (a weak key: redefined
-      functions are read anew).
+      tokenize) at every transform; kept per function object while its code object and its .py
+      file's mtime and size stay the same (a weak key: redefined functions are read anew); any
+      other source (notebook cells, wrapped functions, files gone) is read by Taichi each time.
     - ``kernel_impl._inside_class``: whether a kernel is defined in a class body, from the source
       line of the defining frame, which ``inspect.getframeinfo`` finds by searching sys.modules for
-      the frame's module at every decorator; read from linecache directly (Taichi's way when
-      linecache has no line, e.g. source that is not in a file)."""
+      the frame's module at every decorator; read from linecache directly where that frame's code
+      is a .py file on disk, False for frozen code without source (what inspect finds there:
+      nothing), Taichi's way otherwise."""
     if DISTRIBUTION != "taichi" or VERSION != (1, 7, 4):
         return {}
     try:
@@ -119,6 +121,7 @@ def _quicker_kernel_transforms():
         return {}
 
     excerpts = {}
+    EXCERPTS_KEPT = 100_000           # distinct excerpts kept (the road and roof pipelines: ~2,000)
 
     def get_pos_info(self, node):
         line = node.lineno
@@ -140,32 +143,55 @@ def _quicker_kernel_transforms():
                tuple(self.src[line - 1:end_line or line]))
         excerpt = excerpts.get(key)
         if excerpt is None:
+            if len(excerpts) >= EXCERPTS_KEPT:    # a long-lived host compiling ever new sources
+                excerpts.clear()
             excerpt = excerpts[key] = own["get_pos_info"](self, node)[len(head):]
         return head + excerpt
 
     sources = weakref.WeakKeyDictionary()
 
+    def file_state(path):
+        """(mtime, size) of a Python source file on disk (what linecache.checkcache compares), or
+        None: only such sources are kept or read directly, everything else goes to Taichi."""
+        if not isinstance(path, str) or not path.endswith(".py"):
+            return None
+        try:
+            state = os.stat(path)
+        except (OSError, ValueError):
+            return None
+        return state.st_mtime_ns, state.st_size
+
     def getsourcelines(obj):
         code = getattr(obj, "__code__", None)
+        # inspect follows __wrapped__; a file that is gone, edited or not a file is read by Taichi
+        state = None if code is None or hasattr(obj, "__wrapped__") else file_state(code.co_filename)
+        if state is None:
+            return own["getsourcelines"](obj)
         try:
             found = sources.get(obj)
-        except TypeError:                 # not weak-referenceable: not cached
+        except TypeError:                 # not weak-referenceable: not kept
             return own["getsourcelines"](obj)
-        if found is None or found[0] is not code:
-            # a function whose code was replaced in place (e.g. IPython's autoreload) is read anew
+        if found is None or found[0] is not code or found[1] != state:
+            # new, or its code replaced in place (IPython's autoreload), or its file changed on disk
             lines, start = own["getsourcelines"](obj)
-            found = sources[obj] = (code, tuple(lines), start)
-        return list(found[1]), found[2]
+            found = sources[obj] = (code, state, tuple(lines), start)
+        return list(found[2]), found[3]
 
     def _inside_class(level_of_class_stackframe):
         try:
             frame = sys._getframe(level_of_class_stackframe)
-            filename = frame.f_code.co_filename
-            linecache.checkcache(filename)    # as inspect does: a file changed on disk is read anew
-            text = linecache.getline(filename, frame.f_lineno, frame.f_globals)
-        except Exception:                 # as Taichi's: no frame there means not in a class
+        except ValueError:                # as Taichi's: no frame there means not in a class
             return False
-        if not text:
+        filename = frame.f_code.co_filename
+        if filename.startswith("<frozen ") and filename not in linecache.cache:
+            # the importer running a module's body: frozen code has no source, so inspect finds no
+            # line and Taichi's answer is False (every module-level kernel of an imported module)
+            return False
+        text = ""
+        if file_state(filename) is not None and isinstance(frame.f_lineno, int):
+            linecache.checkcache(filename)    # as inspect does: a file changed on disk is read anew
+            text = linecache.getline(filename, frame.f_lineno)
+        if not text:                      # not a source file on disk, or no such line: Taichi's way
             return own["_inside_class"](level_of_class_stackframe + 1)
         statement = text.strip()
         return any(pattern.match(statement) for pattern in class_statements)

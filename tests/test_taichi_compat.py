@@ -2,7 +2,9 @@
 return: in a fresh interpreter (where every kernel module is imported and every kernel transformed
 anew) each call that importing the kernels and running the road and roof pipelines makes goes to
 both versions and the results are compared, with a module written for the edge cases beside
-(lines of 79, 80 and 81 columns, an expression over several lines, a data-oriented class)."""
+(lines of 79, 80 and 81 columns, an expression over several lines, a data-oriented class); and
+in this process, sources that change under a kept function (its code replaced, its file edited
+or deleted on disk) and wrapped functions."""
 from __future__ import annotations
 
 import json
@@ -23,16 +25,15 @@ from roadx_ti.kernels.taichi_compat import ti
 
 @ti.func
 def sum_of_three(a: ti.f32, b: ti.f32, c: ti.f32) -> ti.f32:
-    return a + b + c   
-                    
+    return a + b + c
 
 @ti.kernel
 def edge_cases(out: ti.types.ndarray(dtype=ti.f32, ndim=1)):
     for i in range(out.shape[0]):
         x = ti.cast(i, ti.f32)
-        y = sum_of_three(x, x * 2.0, x * 3.0) + sum_of_three(x, x, x) + 1.000000
-        z = sum_of_three(x, x * 2.0, x * 3.0) + sum_of_three(x, x, x) + 1.0000000
-        w = sum_of_three(x, x * 2.0, x * 3.0) + sum_of_three(x, x, x) + 1.00000000
+        y = sum_of_three(x, x * 2.0, x * 3.0) + sum_of_three(x, x, x) + 1.00000
+        z = sum_of_three(x, x * 2.0, x * 3.0) + sum_of_three(x, x, x) + 1.000000
+        w = sum_of_three(x, x * 2.0, x * 3.0) + sum_of_three(x, x, x) + 1.0000000
         v = sum_of_three(x,
                          y,
                          z) + w
@@ -65,8 +66,9 @@ def compared(name, taichis, replacement):
         counts["example"] = counts["example"] or [name, repr(taichis)[:400], repr(replacement)[:400]]
     return taichis
 def get_pos_info(self, node):
-    single = getattr(node, "end_lineno", None) == node.lineno and len(self.src[node.lineno - 1]) <= 80
-    counts["direct"] += int(single)
+    code = self.src[node.lineno - 1]
+    counts["direct"] += int(getattr(node, "end_lineno", None) == node.lineno and len(code) <= 80
+                            and self.indent + node.end_col_offset <= 80 and code.isascii() and code.isprintable())
     return compared("get_pos_info", own["get_pos_info"](self, node), ours["get_pos_info"](self, node))
 def getsourcelines(obj):
     return compared("getsourcelines", own["getsourcelines"](obj), ours["getsourcelines"](obj))
@@ -124,3 +126,57 @@ def test_source_is_read_again_when_a_functions_code_is_replaced():
     changing.__code__ = _second.__code__
     assert kernel_impl.getsourcelines(changing) == taichi_compat.TAICHIS_OWN["getsourcelines"](_second)
     assert kernel_impl.getsourcelines(changing) != first
+
+
+def _module(tmp_path, name, body):
+    import importlib.util
+
+    path = tmp_path / f"{name}.py"
+    path.write_text(body)
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return path, module
+
+
+@pytest.mark.skipif(not taichi_compat.TAICHIS_OWN,
+                    reason=f"{taichi_compat.description()}: the replacements are for taichi 1.7.4 only")
+def test_source_of_a_file_edited_or_deleted_on_disk_is_taichis(tmp_path):
+    """Taichi compiles from the file's text: once the file changes (without a reload) the kept
+    lines must not outlive it, and a deleted file fails as it does for Taichi."""
+    import os
+
+    from taichi.lang import kernel_impl
+
+    own = taichi_compat.TAICHIS_OWN["getsourcelines"]
+    path, module = _module(tmp_path, "edited_on_disk", "def f():\n    return 1\n")
+    assert kernel_impl.getsourcelines(module.f) == own(module.f)
+    path.write_text("def f():\n    return 2 + 40\n")
+    stat = path.stat()
+    os.utime(path, ns=(stat.st_atime_ns, stat.st_mtime_ns + 10**9))
+    assert kernel_impl.getsourcelines(module.f) == own(module.f) == (["def f():\n", "    return 2 + 40\n"], 1)
+    path.unlink()
+    with pytest.raises(OSError):
+        own(module.f)
+    with pytest.raises(OSError):
+        kernel_impl.getsourcelines(module.f)
+
+
+@pytest.mark.skipif(not taichi_compat.TAICHIS_OWN,
+                    reason=f"{taichi_compat.description()}: the replacements are for taichi 1.7.4 only")
+def test_wrapped_function_source_is_taichis(tmp_path):
+    """inspect follows __wrapped__, which can be reassigned: such functions are never kept."""
+    import functools
+
+    from taichi.lang import kernel_impl
+
+    _, module = _module(tmp_path, "wrapped", "def inner():\n    return 1\n\n\ndef other():\n    return 2\n")
+
+    @functools.wraps(module.inner)
+    def outer():
+        return module.inner()
+    own = taichi_compat.TAICHIS_OWN["getsourcelines"]
+    assert kernel_impl.getsourcelines(outer) == own(outer) == own(module.inner)
+    outer.__wrapped__ = module.other
+    assert kernel_impl.getsourcelines(outer) == own(outer) == own(module.other)
+
