@@ -44,6 +44,7 @@ from .taichi_compat import cpu_threads, ti
 
 from .common import (as_ndarray, cpu_block_dim, f32_order_key, f32_from_order_key, host_memory_backend,
                      kernel_array, length, ndarray, to_numpy)
+from .grid import bounding_box
 
 DAMPING = 0.01
 GRAVITY = 0.2
@@ -53,7 +54,6 @@ STOP_DISPLACEMENT = 0.005  # early stop when the largest movable displacement is
 SLOPE_HEIGHT_STEP = 0.3    # the package's height_diff_threshold (slope smoothing)
 SLOPE_MIN_COMPONENT = 50   # slope smoothing only for movable components larger than this
 SERIAL_CELLS = 2**18       # on the CPU, smaller cloths run all iterations in one serial launch
-BBOX_CHUNK = 4096          # points per thread of the bounding-box reduction
 ITERATIONS_PER_CHECK = 8   # iterations launched between two host reads of the stop flag
 
 # the package's constraint coefficients per rigidness (index = rigidness, 0..14; 0.5 / 1 beyond)
@@ -88,25 +88,7 @@ def _neighbour_offset(k: ti.i32) -> ti.math.ivec2:
                          (((_RING_DJ_CODE >> (2 * m)) & 3) - 1) * ring)
 
 
-# ---------------------------------------------------------------- bounding box and rasterisation
-
-@ti.kernel
-def _bbox(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), keys: ti.types.ndarray(dtype=ti.i32, ndim=1),
-          chunk: ti.i32):
-    # keys: min x, min y, min z, -max x, -max y, -max z as order keys (atomic_min only); one
-    # atomic per chunk of points and axis, not per point (they would all hit the same six words)
-    n = xyz.shape[0]
-    for t in range((n + chunk - 1) // chunk):
-        lo = ti.Vector([xyz[t * chunk, 0], xyz[t * chunk, 1], xyz[t * chunk, 2]])
-        hi = lo
-        for p in range(t * chunk + 1, ti.min(n, (t + 1) * chunk)):
-            v = ti.Vector([xyz[p, 0], xyz[p, 1], xyz[p, 2]])
-            lo = ti.min(lo, v)
-            hi = ti.max(hi, v)
-        for a in ti.static(range(3)):
-            ti.atomic_min(keys[a], f32_order_key(lo[a]))
-            ti.atomic_min(keys[3 + a], f32_order_key(-hi[a]))
-
+# ---------------------------------------------------------------- rasterisation
 
 @ti.kernel
 def _raster_distance(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), x0: ti.f32, y0: ti.f32,
@@ -663,9 +645,9 @@ class ClothResult:
         return to_numpy(out)
 
 
-def _grid(keys: np.ndarray, resolution: float, lattice_origin=None):
-    lo = np.asarray([f32_from_key(k) for k in keys[:3]], np.float64)
-    hi = -np.asarray([f32_from_key(k) for k in keys[3:]], np.float64)
+def _grid(lo, hi, resolution: float, lattice_origin=None):
+    lo = np.asarray(lo, np.float64)
+    hi = np.asarray(hi, np.float64)
     if lattice_origin is None:   # the package's layout: from the bounding box
         cols = int(math.floor((hi[0] - lo[0]) / resolution)) + 2 * BUFFER_PARTICLES
         rows = int(math.floor((hi[1] - lo[1]) / resolution)) + 2 * BUFFER_PARTICLES
@@ -685,13 +667,6 @@ def _grid(keys: np.ndarray, resolution: float, lattice_origin=None):
         counts.append(int(math.ceil((hi[axis] - start) / resolution)) + BUFFER_PARTICLES)
         steps.append(step)
     return lo, hi, counts[0], counts[1], corner[0], corner[1], steps[1]
-
-
-def f32_from_key(key) -> float:
-    bits = int(key)
-    if bits < 0:
-        bits ^= 0x7FFFFFFF
-    return float(np.array([bits], np.int32).view(np.float32)[0])
 
 
 class LatticeTooLarge(ValueError):
@@ -745,9 +720,8 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
                            float(cloth_resolution))
     res = float(cloth_resolution)
 
-    keys = _fill_i32((6,), _KEY_MAX)
-    _bbox(points, keys, BBOX_CHUNK)
-    lo, hi, cols, rows, x0, y0, lattice_row = _grid(keys.to_numpy(), res, lattice_origin)
+    # grid.bounding_box: the one bounding-box kernel (a kernel of its own here cost a compile)
+    lo, hi, cols, rows, x0, y0, lattice_row = _grid(*bounding_box(points), res, lattice_origin)
     cells = cols * rows
     if max_particles is not None and cells > max_particles:
         raise LatticeTooLarge(cols, rows, res, int(max_particles))
