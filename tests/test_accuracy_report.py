@@ -61,3 +61,32 @@ def test_thinning_is_uniform_deterministic_and_order_independent():
     busy = counts >= 200
     assert np.all(np.abs(fraction[busy] - 3.0 / density) < 0.3 * 3.0 / density)
     assert accuracy.thin_to_density(thin, 10.0) is thin      # not denser: unchanged
+
+
+def _row(name, kappa):
+    return {"dataset": name, "config": "x.yaml", "points": 10, "seconds": 1.0, "type1": 0.1, "type2": 0.01,
+            "total": 0.02, "kappa": kappa, "stages": []}
+
+
+def test_a_run_of_one_task_keeps_the_other_tasks_rows(tmp_path):
+    """`accuracy --task roof` rewrites the report whole: the road rows (and their provenance) come
+    from the earlier accuracy.json, not dropped (as they were until 2026-12-05)."""
+    from roadx_ti import jsonio
+
+    earlier = tmp_path / "accuracy.json"
+    jsonio.write(earlier, {"command": "accuracy --task all", "results": {"road": [_row("street", 0.9)],
+                                                                          "roof": [_row("old roofs", 0.5)]}})
+    previous = accuracy.previous_results(earlier)
+    assert previous["road"][1] == {"command": "accuracy --task all", "date": None}
+    roof = {"roof": [_row("new roofs", 0.8)]}
+    merged, produced = accuracy.merge_with_previous(roof, {"roof": {"command": "accuracy --task roof",
+                                                                    "date": "2026-12-05"}}, previous)
+    assert list(merged) == ["road", "roof"]
+    assert merged["road"][0]["dataset"] == "street" and merged["roof"][0]["dataset"] == "new roofs"
+    text = accuracy.render(merged, produced)
+    assert "| street |" in text and "| new roofs |" in text and "| old roofs |" not in text
+    assert "the road section by `accuracy --task all`; the roof section by `accuracy --task roof` on 2026-12-05" in text
+    # one source: one line; an unreadable earlier file keeps nothing (this run's tasks only)
+    assert accuracy.produced_line({"road": {"command": "c", "date": "d"}}) == "Produced by `c` on d."
+    earlier.write_text("{ not json")
+    assert accuracy.previous_results(earlier) == {} and accuracy.previous_results(tmp_path / "absent.json") == {}
