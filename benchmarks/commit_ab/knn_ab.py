@@ -24,10 +24,6 @@ REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
 
-def _size(text: str) -> int:
-    return int(float(text[:-1]) * 1e6) if text[-1] in "Mm" else int(float(text))
-
-
 def load_base(rev: str):
     """kernels/neighbors.py at ``rev`` as module roadx_ti.kernels._neighbors_base."""
     source = subprocess.run(["git", "-C", str(REPO), "show", f"{rev}:kernels/neighbors.py"],
@@ -51,6 +47,7 @@ def main():
     args = ap.parse_args()
 
     from roadx_ti import backend, synthetic
+    from roadx_ti.config import parse_point_count
     backend.init("cpu")
     from roadx_ti.kernels import neighbors as new
     base = load_base(args.base)
@@ -60,7 +57,7 @@ def main():
     print("| points | base median | new median | base / new per round | identical |")
     print("|---|---:|---:|---|---|")
     for size in args.points.split(","):
-        n = _size(size)
+        n = parse_point_count(size)
         xyz = np.ascontiguousarray(synthetic.generate("uav-road", n, 0).xyz, np.float32)
         results = {}
         for tag, module in (("base", base), ("new", new)):
