@@ -22,6 +22,8 @@ PANEL_PX = 640              # raster pixels across a panel at most (the figure's
 PIXEL_SPACINGS = 1.4        # pixel edge in point spacings: about 2 points per pixel
 DPI = 110
 PANEL_INCHES = PANEL_PX / DPI
+MAX_PANEL_ASPECT = 2.0      # a panel is at most this many widths high: a narrow north-south scene
+                            # (a corridor, a wall) is drawn narrower, not as a figure 400 k px high
 FILL_GAPS_PX = 2            # empty pixels this close to a filled one take its value
 TARGET = np.array([1.0, 0.0, 0.85])         # strong magenta: the result / the truth
 CORRECT = np.array([1.0, 0.55, 0.93])       # light magenta: target found
@@ -235,7 +237,7 @@ def top_view_png(path, cloud, predicted: np.ndarray, *, truth: np.ndarray | None
         ]
         facts.update({k: cm[k] for k in "abcd"})
     grid_rows = (len(panels) + 1) // 2
-    aspect = view.rows / view.cols
+    aspect = min(view.rows / view.cols, MAX_PANEL_ASPECT)
     legend_lines = [max(len(p[2]) for p in panels[2 * r:2 * r + 2]) for r in range(grid_rows)]
     height = sum(PANEL_INCHES * aspect + 0.4 + 0.22 * lines for lines in legend_lines) + (0.35 if title else 0)
     fig = Figure(layout="constrained", figsize=(2 * PANEL_INCHES + 0.3, height))

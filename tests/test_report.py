@@ -92,3 +92,19 @@ def test_accuracy_dataset_png_on_a_real_tile(shared_data, tmp_path):
     assert path.name == "roof_IGN_reviewed__test.png"
     image = matplotlib.image.imread(path)
     assert image.shape[1] > 1200 and image.shape[0] > 600
+
+
+@pytest.mark.parametrize("shape", ["wall", "corridor"])
+def test_a_narrow_north_south_scene_gives_a_picture_of_ordinary_size(tmp_path, shape):
+    """A wall (every x equal) or a 10 m x 1 km corridor: the panels are at most MAX_PANEL_ASPECT
+    widths high (the figure had grown with the scene's aspect: 410,346 px high for a 50 m wall, 22 GB)."""
+    rng = np.random.default_rng(1)
+    n = 20_000
+    x = np.full(n, 100.0) if shape == "wall" else rng.uniform(0, 10, n)
+    y = rng.uniform(0, 50 if shape == "wall" else 1000, n)
+    cloud = Cloud.from_world(np.column_stack([x, y, rng.uniform(0, 10, n)]))
+    facts = report.top_view_png(tmp_path / "narrow.png", cloud, np.zeros(n, bool), truth=y < 20)
+    image = matplotlib.image.imread(tmp_path / "narrow.png")
+    limit = 2 * (report.MAX_PANEL_ASPECT * report.PANEL_PX + 200)     # two rows of panels, legends
+    assert image.shape[0] < limit and image.shape[1] < 2 * report.PANEL_PX + 200
+    assert facts["size_px"][1] <= report.PANEL_PX + 1
