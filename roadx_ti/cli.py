@@ -263,6 +263,8 @@ def cmd_run(args) -> int:
         if not fits_new_file(cloud.xyz):     # say it now, not after the whole pipeline
             raise DataError(f"{out}: the points of {cloud.source} span more than +-2147 km from their origin, "
                             "which a LAS file at 1 mm scale cannot hold; split the cloud or write .ply/.npz")
+    # columns the output format cannot hold: say it now, not after the whole pipeline
+    io.check_writable(out, cloud, {"roadx_label": "uint8", "segment_id": "int32"})
     if memory.points_before_reading(cfg) is None:   # formats without a header count: now it is known
         memory.check_run(cfg, cloud.n, cloud)
         if cfg.tiled:
@@ -370,6 +372,10 @@ def _prepare_output(out: Path, inputs) -> None:
     _check_copc(out)
     _make_parent(out)
     io.check_output_path(out, inputs)
+    for kind, sidecar in _output_paths(out).items():   # a folder in a sidecar's place: say it now
+        if sidecar.is_dir():
+            raise io.InputError(f"{sidecar}: is a folder where the run writes its {kind} file; move it, or choose "
+                                "another output name")
 
 
 def _check_copc(out: Path) -> None:

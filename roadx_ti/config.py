@@ -159,12 +159,17 @@ class RunConfig(_Strict):
             raise ConfigError(f"config error: {exc}") from None
         return out
 
-    @field_validator("memory_limit")
+    @field_validator("memory_limit", mode="before")
     @classmethod
     def _memory_size(cls, value):
+        if isinstance(value, bool):
+            raise ValueError(f"not a memory size: {value!r} (use e.g. 512M, 8G)")
+        if isinstance(value, (int, float)):       # a number of bytes (YAML and --set give numbers)
+            value = str(value)
         if value is not None:
             from roadx_ti.memory import parse_size
-            parse_size(value)
+            if parse_size(value) <= 0:
+                raise ValueError(f"must be more than 0 bytes, got {value!r}")
         return value
 
     @model_validator(mode="after")
@@ -223,7 +228,7 @@ def parse_point_count(text: str) -> int:
     scale = {"k": 1_000, "m": 1_000_000}.get(t[-1:], 1)
     try:
         value = int(float(t[:-1] if scale != 1 else t) * scale)
-    except ValueError:
+    except (ValueError, OverflowError):     # OverflowError: inf, 1e400
         raise argparse.ArgumentTypeError(f"not a point count: {text!r}") from None
     if value <= 0:
         raise argparse.ArgumentTypeError(f"point count must be > 0, got {text!r}")
@@ -289,6 +294,8 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         seen = set()
         for key_node, _ in node.value:
             key = self.construct_object(key_node, deep=deep)
+            if not isinstance(key, (str, int, float, bool)) and key is not None:   # '? [a, b]': a list key
+                raise ConfigError(f"a {type(key).__name__} as a key is not a name (line {key_node.start_mark.line + 1})")
             if key in seen:
                 raise ConfigError(f"key {key!r} given twice (line {key_node.start_mark.line + 1})")
             seen.add(key)
@@ -301,7 +308,10 @@ def load(path: str | Path, overrides: list[str] = ()) -> RunConfig:
     if not path.is_file():
         raise ConfigError(f"config file {path} does not exist")
     try:
-        raw = yaml.load(path.read_text(), Loader=_UniqueKeyLoader)
+        raw = yaml.load(path.read_bytes().decode("utf-8"), Loader=_UniqueKeyLoader)
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"config file {path} is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset "
+                          f"{exc.start}); save it as UTF-8") from None
     except ConfigError as exc:
         raise ConfigError(f"config file {path}: {exc}") from None
     except yaml.YAMLError as exc:

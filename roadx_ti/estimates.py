@@ -105,6 +105,7 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
     import laspy
 
     from roadx_ti import io
+    from roadx_ti.io.las import las_errors
     from roadx_ti.kernels.downsample import hashed_sample
     from roadx_ti.ordering import canonical_order
     from roadx_ti.stages.downsample import coordinate_cells
@@ -125,7 +126,7 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
         return_parts.append(None if returns is None else returns[pick])
     for f in files:
         if f.path.lower().endswith((".las", ".laz")):     # COPC too: its chunks read in file order
-            with laspy.open(f.path) as reader:
+            with las_errors(f.path), laspy.open(f.path) as reader:
                 colour = "red" in reader.header.point_format.dimension_names
                 for record in reader.chunk_iterator(chunk_points):
                     world = np.column_stack([np.asarray(record.x), np.asarray(record.y),

@@ -252,6 +252,14 @@ def case_colour_stage_without_colour(d):
                 check=lambda c: _las_result(c, src))
 
 
+def case_road_without_colour_or_intensity(d):
+    """The road pipeline on points with neither colour nor intensity: a warning that the road is chosen
+    by kerbs and shape alone (it switched silently, finding much less road), then a valid output."""
+    src = write_las(d / "in" / "grey.laz", bumpy_ground(3000, side=30.0))
+    return _demo(d, src, code=0, warning="no colour and no intensity that varies",
+                 check=lambda c: _las_result(c, src))
+
+
 def case_colour_8_and_16_bit(d):
     """The same colours stored 8-bit (0-255) and 16-bit (x 257): identical labels (thresholds are
     in 8-bit units), the colours written back bit-exact, and the grey road patch found."""
@@ -304,6 +312,45 @@ def case_empty_config(d):
     config = d / "in" / "empty.yaml"
     config.write_text("")
     return _run(config, d, write_las(d / "in" / "ground.las", bumpy_ground(500)), code=2, message="is empty")
+
+
+def case_config_not_utf8(d):
+    """A config saved in Latin-1 (a comment with 'café'): exit 2 in one line saying it is not UTF-8
+    (it was 'unexpected error: UnicodeDecodeError', exit 1)."""
+    config = d / "in" / "latin1.yaml"
+    config.write_bytes(b"pipeline: ground\n# caf\xe9\n")
+    return _run(config, d, write_las(d / "in" / "ground.las", bumpy_ground(500)), code=2, message="is not UTF-8")
+
+
+def case_config_with_a_list_as_a_key(d):
+    """YAML's complex key ('? [a, b]'): exit 2, 'not a name' (it was 'unexpected error: TypeError')."""
+    config = d / "in" / "listkey.yaml"
+    config.write_text("pipeline: ground\n? [a, b]\n: 1\n")
+    return _run(config, d, write_las(d / "in" / "ground.las", bumpy_ground(500)), code=2, message="is not a name")
+
+
+def case_output_name_too_long(d):
+    """An output name of 200 bytes (its temporary file and sidecars would pass the file system's 255):
+    exit 1 before any work, with the longest name allowed (it was 'unexpected error: OSError' after
+    the run)."""
+    return _tiny(d, _ground_laz(d), output=d / "out" / ("r" * 200 + ".laz"), message="the file name is too long")
+
+
+def case_text_reflectance_into_las(d):
+    """A text table X Y Z and a float reflectance 0-1 (read as the intensity column, which LAS holds as
+    integers) written to .laz: exit 1 naming the column before the pipeline runs (it failed only at
+    the write, after the whole run)."""
+    rng = np.random.default_rng(4)
+    src = d / "in" / "scan.txt"
+    np.savetxt(src, np.column_stack([bumpy_ground(800), rng.uniform(0, 1, 800)]), fmt="%.4f")
+    return _tiny(d, src, message="does not fit the LAS intensity field")
+
+
+def case_a_folder_where_the_config_copy_goes(d):
+    """A folder named like the run's copy of its config (out/result.config.yaml/): exit 1 before any
+    work, and no output (result.laz and its DTM were written first, then the sidecar failed)."""
+    (d / "out" / "result.config.yaml").mkdir(parents=True)
+    return _tiny(d, _ground_laz(d), message="is a folder where the run writes its config file")
 
 
 def case_input_from_standard_input(d):
@@ -585,6 +632,64 @@ def case_catalog_folder_of_text_tiles_with_readme(d):
         assert len(laspy.read(c.output).points) == 1600
     return _run(CONFIGS / "ground.yaml", d, folder, code=0, warning="skipped 1 other file(s): readme.txt",
                 check=check)
+
+
+def _crs_wkt(epsg: int) -> str:
+    from rasterio.crs import CRS
+    return CRS.from_epsg(epsg).to_wkt()
+
+
+def case_catalog_of_two_coordinate_systems(d):
+    """A catalog folder whose two files name different CRSs (EPSG:32631 and EPSG:2154: their
+    coordinates share no frame): exit 1 before any work, both files and CRSs named. It was merged
+    without a word, labelled as the first file's CRS."""
+    folder = d / "in" / "tiles"
+    folder.mkdir()
+    write_las(folder / "a.laz", bumpy_ground(1500), crs_wkt=_crs_wkt(32631))
+    write_las(folder / "b.laz", bumpy_ground(1500, seed=1) + [25.0, 0, 0], crs_wkt=_crs_wkt(2154))
+    return _run(CONFIGS / "ground.yaml", d, folder, message="different coordinate systems")
+
+
+def case_catalog_with_and_without_a_coordinate_system(d):
+    """A catalog of a file naming EPSG:32631 and one naming none: taken as one survey, with a
+    warning naming the file without a CRS."""
+    folder = d / "in" / "tiles"
+    folder.mkdir()
+    write_las(folder / "a.laz", bumpy_ground(1500), crs_wkt=_crs_wkt(32631))
+    write_las(folder / "b.laz", bumpy_ground(1500, seed=1) + [25.0, 0, 0])
+
+    def check(c):
+        assert len(laspy.read(c.output).points) == 3000
+    return _run(CONFIGS / "ground.yaml", d, folder, code=0, warning="name no coordinate system", check=check)
+
+
+def case_catalog_of_two_scales_merged(d):
+    """A catalog of a 1 cm and a 0.1 mm file merged into one output: the merged file takes the
+    first file's scale, so the second's coordinates are rounded; said in a warning (it was silent)."""
+    folder = d / "in" / "tiles"
+    folder.mkdir()
+    write_las(folder / "a.laz", bumpy_ground(1500))
+    write_las(folder / "b.laz", bumpy_ground(1500, seed=1) + [25.0, 0, 0], scale=0.0001)
+
+    def check(c):
+        assert len(laspy.read(c.output).points) == 3000
+    return _run(CONFIGS / "ground.yaml", d, folder, code=0, warning="other scales or offsets than", check=check)
+
+
+def case_catalog_with_a_truncated_file(d):
+    """A catalog folder of two good files and one cut short: exit 1 naming the broken file (the
+    survey estimates' pass over the files raised lazrs' own error, 'unexpected error')."""
+    folder = _tiles_folder(d)
+    data = (folder / "b.laz").read_bytes()
+    (folder / "c.laz").write_bytes(data[: len(data) // 3])
+    return _run(CONFIGS / "ground.yaml", d, folder, message="c.laz: truncated or corrupt")
+
+
+def case_tile_size_far_too_small(d):
+    """--tile-size 0.1 on a 20 m scene (tens of thousands of tiles, each reading the whole scene
+    through its 30 m buffer): refused at once in one line (the tile plan ran for minutes)."""
+    return _run(CONFIGS / "ground.yaml", d, _ground_laz(d), extra=["--tile-size", "0.1"], code=2,
+                message="use a larger tile size", max_seconds=60)
 
 
 def case_stale_partial_file_of_a_killed_run(d):

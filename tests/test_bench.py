@@ -151,8 +151,9 @@ def test_unknown_stage_is_a_usage_error(tmp_path):
 
 def test_point_counts():
     assert parse_point_count("1M") == 1_000_000 and parse_point_count("250k") == 250_000 and parse_point_count("1200") == 1200
-    with pytest.raises(argparse.ArgumentTypeError):
-        parse_point_count("lots")
+    for text in ("lots", "inf", "1e400", "-inf", "nan"):     # inf / 1e400 were an OverflowError traceback
+        with pytest.raises(argparse.ArgumentTypeError):
+            parse_point_count(text)
 
 
 def test_a_later_run_replaces_the_rows_it_remeasured():
@@ -174,3 +175,4 @@ def test_a_later_run_replaces_the_rows_it_remeasured():
     prefix = f"| {render._fmt_points(row['points'])} | {row['backend']} | roadx_ti |"
     mine = [line for line in section.splitlines() if line.startswith(prefix)]
     assert len(mine) == 1 and "| 123 |" in mine[0] and "0.00789" in mine[0]
+

@@ -48,6 +48,13 @@ def test_written_config_lists_what_ran_and_runs_the_same(tmp_path):
         [(n, o.model_dump()) for n, o in tuned.stage_list()]
 
 
+def test_memory_limit_in_bytes_as_a_number():
+    """memory_limit=8000000000 (a number: YAML and --set give numbers) is 8 GB of bytes, like '8000000000'
+    (it was refused as 'Input should be a valid string')."""
+    assert config.from_mapping(GOOD, ["memory_limit=8000000000"]).memory_limit == "8000000000"
+    assert config.from_mapping(GOOD, ["memory_limit=8G"]).memory_limit == "8G"
+
+
 @pytest.mark.parametrize("mapping, overrides, expected", [
     ({"pipeline": "road", "colour": 1}, [], "colour = 1: unknown key"),
     ({"pipeline": "rod"}, [], "pipeline = 'rod'"),
@@ -63,6 +70,8 @@ def test_written_config_lists_what_ran_and_runs_the_same(tmp_path):
     (GOOD, ["seed"], "expected KEY=VALUE"),
     ({"stages": [{"uniform_downsample": {}}]}, [], "exactly one of target_points, ratio or target_density"),
     ({"pipeline": "ground", "stages": []}, [], "stages: the list is empty"),
+    (GOOD, ["memory_limit=0"], "must be more than 0 bytes"),
+    (GOOD, ["memory_limit=lots"], "not a memory size"),
 ])
 def test_config_errors_are_one_line(mapping, overrides, expected):
     with pytest.raises(config.ConfigError) as info:

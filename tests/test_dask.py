@@ -262,3 +262,36 @@ def test_worker_with_another_version_or_without_the_inputs_fails_in_one_line(tmp
         line = error_line(run(dask_procs.address), 1)
         assert f"cannot read {src}" in line and "same absolute path on every worker" in line
     assert not out.exists()
+
+
+@pytest.mark.parametrize("greeting", [None, b"SSH-2.0-OpenSSH_9.6\r\n"])
+def test_a_server_that_is_not_a_dask_scheduler_is_named_at_once(greeting):
+    """--scheduler at a port where something else listens: a web server (the dashboard's port), which
+    waits for a request (the client waited for ever), or a server that speaks first in another
+    protocol (its bytes were read as a frame length of exabytes): one ClusterError within the
+    connect timeout."""
+    import socket
+    import threading
+
+    from roadx_ti.tiling.cluster import _reachable
+    from roadx_ti.tiling.errors import ClusterError
+
+    server = socket.create_server(("127.0.0.1", 0))
+    accepted = []
+
+    def serve():
+        conn, _ = server.accept()
+        accepted.append(conn)
+        if greeting:
+            conn.sendall(greeting)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    t0 = time.perf_counter()
+    with pytest.raises(ClusterError, match="is not a Dask scheduler"):
+        _reachable(f"tcp://127.0.0.1:{server.getsockname()[1]}", 1.0)
+    assert time.perf_counter() - t0 < 5.0
+    thread.join(5)
+    for conn in accepted:
+        conn.close()
+    server.close()

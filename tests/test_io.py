@@ -3,6 +3,7 @@ References are laspy (raw point records), open3d and numpy; no Taichi here."""
 from __future__ import annotations
 
 import hashlib
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -421,8 +422,16 @@ def test_text_layouts(tmp_path):
         f"{p[0]:.3f},{p[1]:.3f},{p[2]:.3f},{c[0]},{c[1]},{c[2]}," for p, c in zip(xyz, rgb)) + "\n")
     (tmp_path / "quoted.csv").write_text('"X","Y","Z"\n' + "\n".join(
         f'"{p[0]:.3f}","{p[1]:.3f}","{p[2]:.3f}"' for p in xyz) + "\n")
+    # Excel's "CSV UTF-8" (a byte-order mark before the header), and a decimal comma between semicolons
+    (tmp_path / "bom.csv").write_text("X,Y,Z,Classification\n" + "\n".join(
+        f"{p[0]:.3f},{p[1]:.3f},{p[2]:.3f},2" for p in xyz) + "\n", encoding="utf-8-sig")
+    (tmp_path / "bom_no_header.xyz").write_text("\n".join(rows) + "\n", encoding="utf-8-sig")
+    (tmp_path / "decimal_comma.csv").write_text("x;y;z;red;green;blue\n" + "\n".join(
+        f"{p[0]:.3f};{p[1]:.3f};{p[2]:.3f};{c[0]};{c[1]};{c[2]}".replace(".", ",") for p, c in zip(xyz, rgb)) + "\n")
+    (tmp_path / "decimal_comma_no_header.csv").write_text("\n".join(
+        f"{p[0]:.3f};{p[1]:.3f};{p[2]:.3f}".replace(".", ",") for p in xyz) + "\n")
     for name in ("plain.xyz", "rgbi.txt", "pdal.csv", "cc.txt", "semicolon.csv", "trailing.csv", "trailing_data.csv",
-                 "quoted.csv"):
+                 "quoted.csv", "bom.csv", "bom_no_header.xyz", "decimal_comma.csv", "decimal_comma_no_header.csv"):
         cloud = io.read(tmp_path / name)
         assert np.abs(cloud.world_xyz() - xyz).max() < 1e-4, name   # float32 local coordinates
     assert io.read(tmp_path / "plain.xyz").rgb is None
@@ -434,6 +443,15 @@ def test_text_layouts(tmp_path):
     assert np.array_equal(io.read(tmp_path / "semicolon.csv").rgb, rgb)
     assert np.array_equal(io.read(tmp_path / "trailing.csv").rgb, rgb)
     assert np.array_equal(io.read(tmp_path / "trailing_data.csv").rgb, rgb)
+    assert np.all(io.read(tmp_path / "bom.csv").classification == 2)
+    assert np.array_equal(io.read(tmp_path / "decimal_comma.csv").rgb, rgb)
+
+
+def test_an_empty_ascii_ply_is_an_empty_cloud(tmp_path):
+    path = tmp_path / "empty.ply"
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\n"
+                    "property float z\nend_header\n")
+    assert io.read(path).n == 0       # it was an IndexError
 
 
 def test_zero_points_give_an_empty_cloud(tmp_path):
@@ -568,3 +586,37 @@ def test_text_with_a_ragged_row_names_the_row_not_numpy_advice(tmp_path):
     message = str(err.value)
     assert "not a point table" in message and "row 3" in message
     assert "usecols" not in message and "\n" not in message
+
+
+@pytest.mark.parametrize("arrays, message", [
+    ({"color_depth": np.array([8, 8])}, "'color_depth' must be one number"),
+    ({"color_depth": np.array("eight")}, "'color_depth' must be one number"),
+    ({"origin": np.array([1.0, 2.0])}, "'origin' must be 3 numbers"),
+    ({"origin": np.array(["a", "b", "c"])}, "'origin' must be 3 numbers"),
+    ({"rgb": np.zeros(10, np.uint8)}, "'rgb' must be numbers of shape (10, 3)"),
+    ({"xyz": np.array([["a", "b", "c"]] * 10)}, "no numeric 'xyz' array"),
+])
+def test_malformed_npz_is_one_input_error(tmp_path, arrays, message):
+    """NPZ arrays of the wrong shape or type (they were TypeError / ValueError / AxisError tracebacks
+    reported as 'unexpected error')."""
+    content = {"xyz": np.zeros((10, 3), np.float32), "rgb": np.zeros((10, 3), np.uint8),
+               "color_depth": np.array(8)} | arrays
+    np.savez(tmp_path / "bad.npz", **content)
+    with pytest.raises(io.InputError, match=re.escape(message)):
+        io.read(tmp_path / "bad.npz")
+
+
+def test_ply_origin_comment_far_from_the_points_is_ignored(tmp_path):
+    """A PLY's 'comment origin' (our writer's local origin) 5,000 km from its points (a hand-edited or
+    foreign file): ignored with a warning, so the points keep their precision (float32 offsets from it
+    had put them on a 0.5 m grid). A Latin-1 byte in a header comment of an ASCII PLY is no error."""
+    rng = np.random.default_rng(2)
+    xyz = np.round(rng.uniform(0, 30, (50, 3)), 3)
+    rows = "\n".join(" ".join(f"{v:.3f}" for v in p) for p in xyz)
+    head = "ply\nformat ascii 1.0\ncomment origin 5000000 5000000 0\nelement vertex 50\n" \
+           "property double x\nproperty double y\nproperty double z\nend_header\n"
+    (tmp_path / "far.ply").write_text(head + rows + "\n")
+    assert np.abs(io.read(tmp_path / "far.ply").world_xyz() - xyz).max() < 1e-5
+    (tmp_path / "latin.ply").write_bytes(head.replace("comment origin 5000000 5000000 0", "comment caf\xe9")
+                                         .encode("latin-1") + rows.encode() + b"\n")
+    assert np.abs(io.read(tmp_path / "latin.ply").world_xyz() - xyz).max() < 1e-5

@@ -126,7 +126,34 @@ def write(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=No
     if kind == "las":
         _las_write.write_las(path, cloud, classification=classification, extra_dims=extra_dims, subset=subset)
     else:
-        _other.WRITERS[kind](path, cloud, classification, extra_dims, subset)
+        try:
+            _other.WRITERS[kind](path, cloud, classification, extra_dims, subset)
+        except InputError:
+            raise
+        except ValueError as exc:      # a column the format cannot hold (other.writable_columns)
+            raise fail(path, f"cannot be written: {' '.join(str(exc).split())}") from None
+
+
+def check_writable(path, cloud: Cloud, result_dims: dict) -> None:
+    """Before a run: raise InputError now, not after the whole pipeline, when ``cloud``'s own
+    columns cannot be written to ``path``'s format (a float 'intensity' into LAS's integer field,
+    a column named like one the writer makes). ``result_dims``: {name: dtype} of the per-point
+    results the run will add. A LAS cloud written to LAS keeps its records: nothing to check."""
+    path = Path(path)
+    kind = _kind(path)
+    if kind == "las" and cloud.las is not None:
+        return
+    classification = np.zeros(cloud.n, np.uint8)
+    extra = {name: np.zeros(cloud.n, dtype) for name, dtype in result_dims.items()}
+    if kind == "las":
+        _las_write.las_from_arrays(path, cloud, classification, extra, None)
+        return
+    try:
+        _, columns = _other.writable_columns(cloud, classification, extra, None)
+    except ValueError as exc:
+        raise fail(path, f"{cloud.source or 'the input'} cannot be written to {path.suffix}: {exc}") from None
+    if kind == "ply":
+        _other.ply_properties(path, columns)
 
 
 def info(path) -> dict:

@@ -45,7 +45,13 @@ def refuse_folder(output) -> None:
     """An output path that is an existing folder: one line naming a file to give instead."""
     out = Path(output)
     if out.is_dir():
-        raise fail(out, f"is a folder, expected an output file name (e.g. {out / 'result.laz'})")
+        example = out / "result.laz" if not out.suffix else out.with_name(f"{out.stem}_2{out.suffix}")
+        raise fail(out, f"is a folder, expected an output file name (e.g. {example})")
+
+
+# bytes the temporary file (.STEM.p<pid>-<host>-<random>.partial.EXT) and the sidecars
+# (STEM.summary.json, STEM.config.yaml, STEM.dtm.tif ...) add to an output's stem, with a margin
+NAME_ADDITIONS = 80
 
 
 def check_output_path(output, inputs: Iterable = ()) -> Path:
@@ -69,6 +75,15 @@ def check_output_path(output, inputs: Iterable = ()) -> Path:
         raise fail(out, f"output folder {folder} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK):
         raise fail(out, f"output folder {folder} is not writable")
+    try:
+        name_max = os.pathconf(folder, "PC_NAME_MAX")
+    except (OSError, ValueError, AttributeError):
+        name_max = 255
+    stem = len(os.fsencode(out.stem))
+    if stem + NAME_ADDITIONS > name_max:
+        raise fail(out, f"the file name is too long ({stem} bytes before its extension; the temporary and "
+                        f"sidecar files add up to {NAME_ADDITIONS}, and this file system allows {name_max}); "
+                        f"use at most {name_max - NAME_ADDITIONS} bytes")
     return out
 
 

@@ -9,6 +9,7 @@ Writing is roadx_ti.io.las_write.
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 import logging
 import os
@@ -116,6 +117,18 @@ def _las_error(path, exc: Exception) -> InputError:
     if "too small" in text or "to small" in text or "signature" in text.lower():
         return fail(path, f"not a LAS/LAZ file ({text})")
     return fail(path, f"truncated or corrupt LAS/LAZ file ({text})")
+
+
+@contextlib.contextmanager
+def las_errors(path):
+    """Inside, a laspy / lazrs failure reading ``path`` (truncated, corrupt) is the InputError
+    that names the file, as the readers here raise it."""
+    try:
+        yield
+    except InputError:
+        raise
+    except LAS_ERRORS as exc:
+        raise _las_error(path, exc) from exc
 
 
 def _too_many(path, n: int) -> InputError:

@@ -155,7 +155,7 @@ def fits_new_file(local: np.ndarray) -> bool:
     return not local.size or float(np.abs(local).max()) / NEW_FILE_SCALE <= 2**31 - 1.5
 
 
-def _las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> laspy.LasData:
+def las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> laspy.LasData:
     n = cloud.n
     has_rgb = cloud.rgb is not None
     header = laspy.LasHeader(point_format=7 if has_rgb else 6, version="1.4")
@@ -208,7 +208,7 @@ def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subse
     if cloud.las is not None:
         las = _las_from_record(path, cloud.las, cloud.n, classification, extra_dims, index)
     else:
-        las = _las_from_arrays(path, cloud, classification, extra_dims, index)
+        las = las_from_arrays(path, cloud, classification, extra_dims, index)
     if len(las.points) > MAX_POINTS:
         raise _too_many(path, len(las.points))
     from . import copc

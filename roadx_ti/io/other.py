@@ -30,6 +30,8 @@ log = logging.getLogger(__name__)
 
 INTENSITY_NAMES = ("intensity", "scalar_intensity", "i")
 CLASS_NAMES = ("classification", "scalar_classification", "class")
+ORIGIN_REACH = 1000.0     # m: a PLY's stored origin farther than this outside its points is not theirs
+TEXT_ENCODING = "utf-8-sig"     # UTF-8, with or without the byte-order mark spreadsheets write
 RGB_NAMES = (("red", "green", "blue"), ("r", "g", "b"), ("diffuse_red", "diffuse_green", "diffuse_blue"))
 
 
@@ -83,7 +85,7 @@ def _take_integral(columns, lower, names, dtype, taken):
     return None
 
 
-def _columns(cloud: Cloud, classification, extra_dims, subset):
+def writable_columns(cloud: Cloud, classification, extra_dims, subset):
     """World xyz and ordered per-point columns to write (after ``subset``)."""
     n = cloud.n
     index = point_index(subset, n)
@@ -196,7 +198,9 @@ def read_ply(path, origin=None) -> Cloud:
         raise fail(path, "PLY vertex data with list properties is not supported")
     if not {"x", "y", "z"} <= {p for p, _ in props}:
         raise fail(path, "PLY vertices have no x y z properties")
-    if fmt == "ascii":
+    if fmt == "ascii" and count == 0:
+        data = {p: np.zeros(0, t) for p, t in props}
+    elif fmt == "ascii":
         skip = sum(e[1] for e in before)
         try:
             table = np.loadtxt(path, dtype=np.float64, ndmin=2, max_rows=count,
@@ -217,6 +221,13 @@ def read_ply(path, origin=None) -> Cloud:
         table = raw.view(dtype)
         data = {p: table[p].astype(np.dtype(t).newbyteorder("=")) for p, t in props}
     world = np.column_stack([data.pop("x"), data.pop("y"), data.pop("z")]).astype(np.float64)
+    if origin is not None and origin is stored_origin and len(world) and np.all(np.isfinite(world)):
+        lo, hi = world.min(axis=0), world.max(axis=0)
+        if np.any(origin < lo - ORIGIN_REACH) or np.any(origin > hi + ORIGIN_REACH):
+            # not our writer's origin of these points: float32 offsets from it would round them
+            log.warning("%s: its 'comment origin' %s lies far from its points; ignored", path,
+                        " ".join(f"{v:.10g}" for v in origin))
+            origin = None
     return world_cloud(path, world, origin, data)
 
 
@@ -224,17 +235,15 @@ def _ascii_after(path, start: int, skip_lines: int) -> dict:
     """loadtxt arguments that start reading after the header and ``skip_lines`` data lines."""
     with open(path, "rb") as f:
         header_lines = f.read(start).count(b"\n")
-    return {"skiprows": header_lines + skip_lines, "comments": None}
+    # latin-1 decodes every byte: a header comment in another encoding is skipped, not an error
+    return {"skiprows": header_lines + skip_lines, "comments": None, "encoding": "latin-1"}
 
 
 def write_ply(path, cloud: Cloud, classification=None, extra_dims=None, subset=None) -> None:
-    world, cols = _columns(cloud, classification, extra_dims, subset)
+    world, cols = writable_columns(cloud, classification, extra_dims, subset)
     fields = [("x", "<f8"), ("y", "<f8"), ("z", "<f8")]
     values = {"x": world[:, 0], "y": world[:, 1], "z": world[:, 2]}
-    for name, a in cols.items():
-        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_\-.]*", name):
-            raise fail(path, f"column name {name!r} cannot be a PLY property name")
-        a = _ply_storable(path, name, a)
+    for name, a in ply_properties(path, cols).items():
         fields.append((name, a.dtype.newbyteorder("<").str))
         values[name] = a
     table = np.empty(len(world), dtype=np.dtype(fields))
@@ -248,6 +257,16 @@ def write_ply(path, cloud: Cloud, classification=None, extra_dims=None, subset=N
         with open(tmp, "wb") as f:
             f.write("\n".join(header).encode("ascii"))
             table.tofile(f)
+
+
+def ply_properties(path, cols: dict) -> dict:
+    """The columns as PLY vertex properties (InputError for a name or type PLY cannot hold)."""
+    out = {}
+    for name, a in cols.items():
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_\-.]*", name):
+            raise fail(path, f"column name {name!r} cannot be a PLY property name")
+        out[name] = _ply_storable(path, name, a)
+    return out
 
 
 def _ply_storable(path, name: str, a: np.ndarray) -> np.ndarray:
@@ -320,7 +339,7 @@ def read_pcd(path, origin=None) -> Cloud:
 
 
 def write_pcd(path, cloud: Cloud, classification=None, extra_dims=None, subset=None) -> None:
-    world, cols = _columns(cloud, classification, extra_dims, subset)
+    world, cols = writable_columns(cloud, classification, extra_dims, subset)
     with _quiet_open3d() as o3d:
         pc = o3d.t.geometry.PointCloud()
         pc.point.positions = o3d.core.Tensor(np.ascontiguousarray(world))
@@ -352,15 +371,22 @@ def read_npz(path, origin=None) -> Cloud:
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
         raise fail(path, f"not a readable NPZ file ({' '.join(str(exc).split())})") from None
     xyz = arrays.pop("xyz", None)
-    if xyz is None or xyz.ndim != 2 or xyz.shape[1] != 3:
-        raise fail(path, "NPZ file has no 'xyz' array of shape (n, 3)")
+    if xyz is None or xyz.ndim != 2 or xyz.shape[1] != 3 or xyz.dtype.kind not in "iuf":
+        raise fail(path, "NPZ file has no numeric 'xyz' array of shape (n, 3)")
     n = len(xyz)
     stored_origin = arrays.pop("origin", None)
+    if stored_origin is not None and (stored_origin.shape != (3,) or stored_origin.dtype.kind not in "iuf"):
+        raise fail(path, f"NPZ array 'origin' must be 3 numbers (x y z), got {stored_origin.dtype} {stored_origin.shape}")
     world = xyz.astype(np.float64) + (0.0 if stored_origin is None else np.asarray(stored_origin, np.float64))
-    for key in ("rgb", "intensity", "classification"):
-        if key in arrays and len(arrays[key]) != n:
-            raise fail(path, f"NPZ array {key!r} has {len(arrays[key])} rows for {n} points")
-    rgb, depth = arrays.pop("rgb", None), int(arrays.pop("color_depth", 0))
+    shapes = {"rgb": (n, 3), "intensity": (n,), "classification": (n,)}
+    for key, shape in shapes.items():
+        if key in arrays and (arrays[key].shape != shape or arrays[key].dtype.kind not in "iuf"):
+            raise fail(path, f"NPZ array {key!r} must be numbers of shape {shape}, got {arrays[key].dtype} "
+                             f"{arrays[key].shape}")
+    depth = arrays.pop("color_depth", np.array(0))
+    if depth.shape != () or depth.dtype.kind not in "iu" or int(depth) not in (0, 8, 16):
+        raise fail(path, f"NPZ 'color_depth' must be one number, 8 or 16 (0: no colour), got {depth!r}")
+    rgb, depth = arrays.pop("rgb", None), int(depth)
     intensity, classes = arrays.pop("intensity", None), arrays.pop("classification", None)
     attributes = {k: v for k, v in arrays.items() if v.ndim == 1 and len(v) == n}
     bad = int(np.count_nonzero(~np.isfinite(world).all(axis=1))) if n else 0
@@ -382,7 +408,7 @@ def read_npz(path, origin=None) -> Cloud:
 def write_npz(path, cloud: Cloud, classification=None, extra_dims=None, subset=None) -> None:
     index = point_index(subset, cloud.n)
     pick = (lambda a: a) if index is None else (lambda a: a[index])
-    _, cols = _columns(cloud, classification, extra_dims, subset)
+    _, cols = writable_columns(cloud, classification, extra_dims, subset)
     arrays = {"xyz": pick(cloud.xyz), "origin": cloud.origin}
     if cloud.rgb is not None:
         arrays["rgb"] = pick(cloud.rgb)
@@ -402,7 +428,7 @@ def _text_layout(path):
     lines of a text file. Columns: None for all; a range when data lines end in empty fields (a
     delimiter at the end of every line, as some spreadsheet and script exports write)."""
     names, skip, lines = None, 0, []
-    with open(path, "r", encoding="utf-8", errors="replace") as f:
+    with open(path, "r", encoding=TEXT_ENCODING, errors="replace") as f:
         for line in f:
             stripped = line.strip()
             if lines:               # the line after a header without comment marker
@@ -421,9 +447,11 @@ def _text_layout(path):
                 continue
             lines.append(stripped)
     if not lines:
-        return None, names, skip, None
-    # commas, semicolons (spreadsheets in locales with a decimal comma write them), else whitespace
-    delimiter = next((d for d in (",", ";") if d in lines[0]), None)
+        return None, names, skip, None, False
+    # semicolons (spreadsheets in locales with a decimal comma write them: commas are then in the
+    # values), commas, else whitespace
+    delimiter = next((d for d in (";", ",") if d in lines[0]), None)
+    decimal_comma = delimiter == ";" and "," in lines[-1]
 
     def fields(line):
         tokens = [t.strip().strip('"').strip("'") for t in (line.split(delimiter) if delimiter else line.split())]
@@ -433,18 +461,22 @@ def _text_layout(path):
         return tokens[:width], width < len(tokens)
     tokens, trailing = fields(lines[0])
     try:
-        [float(t) for t in tokens]
+        [_number(t, decimal_comma) for t in tokens]
     except ValueError:   # a header line without comment marker (PDAL writes "X","Y","Z",...)
         names, skip = tokens, skip + 1
         tokens, trailing = fields(lines[1]) if len(lines) > 1 else (tokens, trailing)
     columns = range(len(tokens)) if trailing else None
-    return delimiter, names, skip, columns
+    return delimiter, names, skip, columns, decimal_comma
+
+
+def _number(text: str, decimal_comma: bool = False) -> float:
+    return float(text.replace(",", ".") if decimal_comma else text)
 
 
 def _quoting(path, skip: int) -> dict:
     """loadtxt's comment and quote options: values in double quotes (spreadsheet exports) are read
     when the first data line holds one (numpy then takes one comment marker only, '#')."""
-    with open(path, "r", encoding="utf-8", errors="replace") as f:
+    with open(path, "r", encoding=TEXT_ENCODING, errors="replace") as f:
         for number, line in enumerate(f):
             if number >= skip and line.strip() and not line.lstrip().startswith(("#", "//")):
                 return {"comments": "#", "quotechar": '"'} if '"' in line else {"comments": ("#", "//")}
@@ -452,10 +484,12 @@ def _quoting(path, skip: int) -> dict:
 
 
 def read_text(path, origin=None) -> Cloud:
-    delimiter, names, skip, columns = _text_layout(path)
+    delimiter, names, skip, columns, decimal_comma = _text_layout(path)
+    # '1,5;2,5;3,5': semicolons between values, commas in them (locales with a decimal comma)
+    convert = {"converters": lambda t: _number(t, True)} if decimal_comma else {}
     try:
-        table = np.loadtxt(path, dtype=np.float64, delimiter=delimiter, skiprows=skip,
-                           ndmin=2, usecols=columns, **_quoting(path, skip))
+        table = np.loadtxt(path, dtype=np.float64, delimiter=delimiter, skiprows=skip, encoding=TEXT_ENCODING,
+                           ndmin=2, usecols=columns, **convert, **_quoting(path, skip))
     except ValueError as exc:
         # numpy's reason without its advice to the programmer ("use `usecols` ...")
         reason = " ".join(str(exc).split()).split("; use `usecols`")[0]
@@ -479,7 +513,7 @@ def read_text(path, origin=None) -> Cloud:
 
 
 def write_text(path, cloud: Cloud, classification=None, extra_dims=None, subset=None) -> None:
-    world, cols = _columns(cloud, classification, extra_dims, subset)
+    world, cols = writable_columns(cloud, classification, extra_dims, subset)
     decimals = _coord_decimals(cloud)
     delimiter = "," if str(path).lower().endswith(".csv") else " "
     formats = [f"%.{decimals}f"] * 3 + ["%d" if a.dtype.kind in "iub" else "%.9g" for a in cols.values()]

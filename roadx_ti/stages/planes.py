@@ -27,16 +27,21 @@ from pydantic import Field
 
 from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
-from roadx_ti.kernels.ransac import fit_plane
+from roadx_ti.kernels.ransac import SAMPLE_SIZE, fit_plane
 from roadx_ti.segments import segment_medians
 from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
+
+MAX_HYPOTHESES = 100_000    # 100 times the paper's 1000: about a second per plane search here
 
 
 class RansacOptions(StageOptions):
     distance_threshold: float = Field(0.1, gt=0, description="R_t: inlier distance to the plane (m); the "
                                       "paper's '10' has no unit and cannot be metres")
     min_inliers: int = Field(100, ge=3, description="R_n: a plane needs more than this many points")
-    hypotheses: int = Field(inspect.signature(fit_plane).parameters["hypotheses"].default, ge=1, description="R_m: plane hypotheses tried per plane search")
+    hypotheses: int = Field(inspect.signature(fit_plane).parameters["hypotheses"].default, ge=1, le=MAX_HYPOTHESES,
+                            description="R_m: plane hypotheses tried per plane search (at most "
+                            f"{MAX_HYPOTHESES:,}: each costs a pass over a {SAMPLE_SIZE:,}-point sample, and a "
+                            "kernel cannot be interrupted)")
     max_planes: int = Field(50, ge=1, description="at most this many planes are extracted")
     max_tilt_deg: float = Field(45.0, gt=0, lt=90, description="a plane whose normal tilts more than this "
                                 "from vertical is Z class (walls) and removed (degrees)")

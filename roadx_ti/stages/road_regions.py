@@ -173,6 +173,9 @@ class RoadRegions(Stage):
             return StageResult(labels=np.full(n, CLASS_OTHER, np.uint8), info={"skipped": "too few points"})
         xyz = cloud.xyz
         source, colour = colour_channels(cloud)
+        if source == "geometry":
+            ctx.log.warning("road_regions: the points carry no colour and no intensity that varies: the road "
+                            "is chosen by kerbs and shape alone, which finds much less of it")
         indices, distances = knn(xyz, k)
         spacing = float(np.median(distances[:, -1]))
         gk = min(o.graph_k or k, k)

@@ -69,3 +69,68 @@ def catalog(inputs, warn: bool = True) -> list[CatalogFile]:
         raise io.InputError(f"the same input file is named twice in {paths}")
     return [CatalogFile(path, tuple(float(b) for b in bounds), int(count), tuple(float(z) for z in z_range))
             for path, bounds, count, z_range in io.read_headers(paths)]
+
+
+def check_compatible(files: list[CatalogFile], merged: bool, log=None) -> None:
+    """Files that one run may take together (LAS/LAZ headers; other formats carry neither CRS nor
+    scales): an InputError when two name different coordinate systems (their coordinates do not
+    share one frame: tiles, buffers and the merged output would mix them); a warning when some
+    name one and others none (assumed the same), and, for a merged output, when their scales or
+    offsets put their coordinates off the first file's grid (the merged file takes the first file's
+    scales and offsets: the others' points are rounded to it)."""
+    from roadx_ti import io
+    from roadx_ti.io.crs import of_header
+
+    log = log or log_default
+    las = [f for f in files if Path(f.path).suffix.lower() in LAS_SUFFIXES]
+    if len(las) < 2:
+        return
+    import laspy
+
+    crs, grids = {}, {}
+    for f in las:
+        with laspy.open(f.path) as reader:
+            crs[f.path] = of_header(reader.header)
+            grids[f.path] = (tuple(float(v) for v in reader.header.scales),
+                             tuple(float(v) for v in reader.header.offsets))
+    named = {p: c for p, c in crs.items() if c is not None}
+    if named:
+        first_path, first = next(iter(named.items()))
+        for path, other in named.items():
+            if other != first:
+                raise io.InputError(f"the inputs are in different coordinate systems: {first_path} is in "
+                                    f"{_crs_name(first)}, {path} in {_crs_name(other)}; reproject them to one "
+                                    "(e.g. pdal translate with filters.reprojection) or run them apart")
+        unnamed = [p for p, c in crs.items() if c is None]
+        if unnamed:
+            log.warning("%d input file(s) name no coordinate system (e.g. %s); taken to be in %s like %s",
+                        len(unnamed), unnamed[0], _crs_name(first), first_path)
+    if merged:
+        first_path = las[0].path
+        differ = [f.path for f in las if not _on_grid(grids[f.path], grids[first_path])]
+        if differ:
+            scales, offsets = grids[first_path]
+            log.warning("%d input file(s) have other scales or offsets than %s (e.g. %s: scales %s, offsets %s); "
+                        "the merged output takes %s's (scales %s, offsets %s) and their coordinates are rounded "
+                        "to it (output.mode per-file keeps each file's)", len(differ), first_path, differ[0],
+                        _numbers(grids[differ[0]][0]), _numbers(grids[differ[0]][1]), Path(first_path).name,
+                        _numbers(scales), _numbers(offsets))
+
+
+def _on_grid(grid, first) -> bool:
+    """Every coordinate representable on ``grid`` (scales, offsets) is exactly one of ``first``'s:
+    its scales whole multiples of the first's and its offsets whole steps of them away."""
+    for scale, offset, first_scale, first_offset in zip(*grid, *first):
+        steps, shift = scale / first_scale, (offset - first_offset) / first_scale
+        if abs(steps - round(steps)) > 1e-6 or round(steps) < 1 or abs(shift - round(shift)) > 1e-6:
+            return False
+    return True
+
+
+def _crs_name(crs) -> str:
+    code = crs.to_epsg()
+    return f"EPSG:{code}" if code else " ".join(crs.to_wkt().split())[:80]
+
+
+def _numbers(values) -> str:
+    return " ".join(f"{v:.10g}" for v in values)

@@ -11,6 +11,7 @@ from roadx_ti.tiling.errors import ClusterError
 
 CONNECT_TIMEOUT = 5.0            # s: reaching the scheduler
 WORKER_TIMEOUT = 30.0            # s: waiting for the first worker
+MAX_HANDSHAKE_FRAMES = 1 << 16   # a Dask handshake's frame count is small; more: another protocol
 # what must match between the client and every worker (README, Scale-out)
 ENVIRONMENT_PACKAGES = ("numpy", "laspy", "lazrs", "scipy", "dask", "distributed")
 
@@ -47,7 +48,11 @@ def unreadable(paths) -> list:
 
 def _reachable(address: str, timeout: float) -> None:
     """A plain TCP connection to a tcp:// scheduler address, so that a closed port or an unknown
-    host fails at once instead of after the client's retries."""
+    host fails at once instead of after the client's retries; and a check that what answers there
+    is a Dask scheduler. A Dask server writes its handshake as soon as a connection opens (a frame
+    count, 8 bytes little-endian, then the frames); a web server (the dashboard's port 8787) waits
+    for a request, which the client's handshake is not: the client then waited for ever, and data
+    from another kind of server was read as a frame length (an allocation of exabytes)."""
     from urllib.parse import urlsplit
 
     if not address.startswith("tcp://"):
@@ -60,11 +65,25 @@ def _reachable(address: str, timeout: float) -> None:
     if not parts.hostname or port is None:
         raise ClusterError(f"--scheduler {address}: not a tcp://HOST:PORT address")
     try:
-        socket.create_connection((parts.hostname, port), timeout=timeout).close()
+        connection = socket.create_connection((parts.hostname, port), timeout=timeout)
     except OSError as exc:
         why = exc.strerror or type(exc).__name__
         raise ClusterError(f"cannot reach the Dask scheduler at {address} ({why}); start `dask scheduler` "
                            "there, or run without --scheduler") from None
+    first = b""
+    try:
+        with connection:
+            while len(first) < 8:
+                chunk = connection.recv(8 - len(first))
+                if not chunk:
+                    break
+                first += chunk
+    except OSError:       # nothing within the timeout, or a reset
+        pass
+    if len(first) < 8 or int.from_bytes(first, "little") > MAX_HANDSHAKE_FRAMES:
+        raise ClusterError(f"what answers at {address} is not a Dask scheduler (no Dask handshake within "
+                           f"{timeout:g} s); give the scheduler's address (`dask scheduler` prints it, port "
+                           "8786 by default; 8787 is its dashboard)")
 
 
 class _DaskSession:

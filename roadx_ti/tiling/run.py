@@ -10,12 +10,12 @@ from pathlib import Path
 
 import numpy as np
 
-from roadx_ti.tiling.catalogs import catalog
+from roadx_ti.tiling.catalogs import catalog, check_compatible
 from roadx_ti.tiling.cluster import _DaskSession
 from roadx_ti.tiling.executors import backend_ready, make_jobs, run_in_process, run_on_dask
 from roadx_ti.tiling.merge import reconcile_segments, write_outputs
 from roadx_ti.tiling.plan import (MAX_WINDOW_POINTS, Tile, budget_tile_size, catalog_origin, default_tile_size,
-                                  plan_tiles, scan_cells)
+                                  plan_tiles, scan_cells, TooManyTiles)
 from roadx_ti.tiling.reach import default_buffer
 from roadx_ti.tiling.split import Split, split_catalog
 from roadx_ti.tiling.tile import TileResult
@@ -98,6 +98,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     if workers is not None and int(workers) < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     files = catalog(input_paths)
+    check_compatible(files, merged=output_mode == "merged", log=log)
     total_points = sum(f.count for f in files)
     if total_points == 0:
         raise io.InputError(f"the inputs hold no points: {', '.join(f.path for f in files)}")
@@ -107,11 +108,13 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     plan = None
     if tile_size is not None:      # checked before the estimates' pass over the files
         tile_size = float(tile_size)
-        plan = plan_tiles(files, tile_size, buffer, scan=scan_cells)
-        if len(plan.tiles) > max(64, total_points // MIN_POINTS_PER_TILE):
-            raise ValueError(f"--tile-size {tile_size:g} gives {len(plan.tiles):,} tiles for {total_points:,} points, "
+        try:
+            plan = plan_tiles(files, tile_size, buffer, scan=scan_cells,
+                              max_tiles=max(64, total_points // MIN_POINTS_PER_TILE))
+        except TooManyTiles as exc:
+            raise ValueError(f"--tile-size {tile_size:g} gives {exc.tiles:,} tiles for {total_points:,} points, "
                              f"fewer than {MIN_POINTS_PER_TILE} per tile (each tile reads its files): use a larger "
-                             f"tile size, e.g. {default_tile_size(files):g} m")
+                             f"tile size, e.g. {default_tile_size(files):g} m") from None
 
     inputs = [f.path for f in files]
     if output_mode == "merged":
