@@ -176,3 +176,34 @@ def test_a_later_run_replaces_the_rows_it_remeasured():
     mine = [line for line in section.splitlines() if line.startswith(prefix)]
     assert len(mine) == 1 and "| 123 |" in mine[0] and "0.00789" in mine[0]
 
+
+def _floor_script():
+    import importlib.util
+
+    from roadx_ti.bench.cases import BENCH_DIR
+
+    spec = importlib.util.spec_from_file_location("roadx_bench_floor", BENCH_DIR / "floor" / "run.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_floor_counts_the_cube_candidates_of_the_knn_grid():
+    """benchmarks/floor/run.py's work count: points in the 3 x 3 x 3 cells around each query on the
+    grid knn() builds, against a brute-force count over every pair of points."""
+    import numpy as np
+
+    from roadx_ti.kernels.common import to_numpy
+    from roadx_ti.kernels.grid import build_grid_into
+    from roadx_ti.kernels.neighbors import default_points_per_cell
+
+    floor = _floor_script()
+    rng = np.random.default_rng(3)
+    xyz = np.concatenate([rng.random((1500, 3)) * [20, 20, 0.3],          # a surface
+                          rng.random((300, 3)) * [20, 20, 8]]).astype(np.float32)   # and a volume
+    counted = floor.cube_candidates(xyz, 16)
+    grid = build_grid_into(xyz, None, default_points_per_cell(16), private=True)
+    cells = to_numpy(grid.sorted_cell).astype(np.int64)
+    near = (np.abs(cells[:, None, :] - cells[None, :, :]) <= 1).all(axis=2)
+    assert counted == pytest.approx(near.sum(axis=1).mean(), rel=1e-12)
+    assert floor.returned_bytes((np.zeros(4, np.int32), [np.zeros(3, np.uint8)], None)) == 19
