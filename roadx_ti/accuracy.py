@@ -686,8 +686,12 @@ def _sizes(text: str) -> tuple:
 def _seeds(text: str):
     if "-" in text:
         a, b = text.split("-")
-        return tuple(range(int(a), int(b) + 1))
-    return tuple(int(v) for v in text.split(",") if v.strip())
+        seeds = tuple(range(int(a), int(b) + 1))
+    else:
+        seeds = tuple(int(v) for v in text.split(",") if v.strip())
+    if not seeds or min(seeds) < 0:      # '5-1' gave an empty matrix and exit 0
+        raise ValueError(f"seeds {text!r}: give seeds >= 0 as a-b (a <= b) or a,b,c")
+    return seeds
 
 
 def _large(text: str) -> int | None:

@@ -64,7 +64,7 @@ def _parser() -> argparse.ArgumentParser:
     s = sub.add_parser("synth", help="write a synthetic scene with truth classes")
     s.add_argument("--kind", required=True, choices=["uav-road", "uav-road-v1", "als-roof", "als-roof-v1"])
     s.add_argument("--points", required=True, type=parse_point_count)
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--seed", type=_seed, default=0)
     s.add_argument("-o", "--output", required=True)
     b = sub.add_parser("bench", help="benchmarks: kernels and pipelines against their anchors")
     from roadx_ti import bench
@@ -75,6 +75,17 @@ def _parser() -> argparse.ArgumentParser:
     accuracy.add_arguments(a)
     return p
 
+
+
+def _seed(text: str) -> int:
+    """argparse type of --seed: an integer >= 0, as config seeds are."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a seed: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"seed must be >= 0, got {value}")
+    return value
 
 
 def _classes(text: str, flag: str) -> list[int]:
@@ -487,6 +498,9 @@ def cmd_eval(args) -> int:
 
     truth_classes = _classes(args.truth_classes, "--truth-classes")
     pred_classes = _classes(args.pred_classes, "--pred-classes") if args.pred_classes else truth_classes
+    for given, flag in ((args.pred, "--pred"), (args.truth, "--truth")):
+        if Path(given).is_dir():
+            raise UsageError(f"{flag} {given}: is a folder; eval compares two files point by point")
     pred = io.read(args.pred)
     truth = io.read(args.truth)
     if pred.n != truth.n:

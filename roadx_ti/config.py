@@ -89,7 +89,10 @@ class EvaluateConfig(_Strict):
     @classmethod
     def _one_class(cls, value):
         # --set evaluate.truth_classes=6: one class, as the list [6]
-        return [value] if isinstance(value, int) and not isinstance(value, bool) else value
+        value = [value] if isinstance(value, int) and not isinstance(value, bool) else value
+        if isinstance(value, list) and any(isinstance(v, int) and not 0 <= v <= 255 for v in value):
+            raise ValueError("classes are integers 0..255 (LAS classification)")
+        return value
 
 
 PIPELINE_TARGET = {"road": 11, "roof": 6, "ground": 2}

@@ -69,12 +69,18 @@ def test_eval_count_mismatch_is_data_error(tmp_path, road_scene):
     assert "counts must be equal" in proc.stderr and "Traceback" not in proc.stderr
     proc = run_cli("eval", "--pred", str(small), "--truth", str(small), "--truth-classes", "x")
     assert proc.returncode == 2 and "--truth-classes" in proc.stderr
+    proc = run_cli("eval", "--pred", str(tmp_path), "--truth", str(small), "--truth-classes", "11")
+    assert proc.returncode == 2 and "is a folder" in proc.stderr      # was "unknown extension '(none)'"
+    proc = run_cli("synth", "--kind", "uav-road", "--points", "5k", "--seed", "-1", "-o", str(tmp_path / "n.laz"))
+    assert proc.returncode == 2 and "seed must be >= 0" in proc.stderr and not (tmp_path / "n.laz").exists()
 
 
 @pytest.mark.parametrize("args, option", [(("--road-large", "none", "--road-sizes", "1x"), "--road-sizes"),
                                           (("--road-seeds", "1-b"), "--road-seeds"),
                                           (("--roof-seeds", "a,b"), "--roof-seeds"),
-                                          (("--road-large", "0"), "--road-large")])
+                                          (("--road-large", "0"), "--road-large"),
+                                          (("--roof-seeds", "5-1"), "--roof-seeds"),        # was an empty matrix
+                                          (("--road-sizes", "inf"), "--road-sizes")])     # was an OverflowError
 def test_accuracy_bad_matrix_is_usage_error(tmp_path, args, option):
     """A typo in the accuracy matrix is a one-line usage error before any scene is built."""
     proc = run_cli("accuracy", "--out", str(tmp_path / "acc"), *args, timeout=120)

@@ -72,6 +72,7 @@ def test_memory_limit_in_bytes_as_a_number():
     ({"pipeline": "ground", "stages": []}, [], "stages: the list is empty"),
     (GOOD, ["memory_limit=0"], "must be more than 0 bytes"),
     (GOOD, ["memory_limit=lots"], "not a memory size"),
+    (GOOD, ["evaluate.truth_classes=[999]"], "classes are integers 0..255"),
 ])
 def test_config_errors_are_one_line(mapping, overrides, expected):
     with pytest.raises(config.ConfigError) as info:

@@ -620,3 +620,12 @@ def test_ply_origin_comment_far_from_the_points_is_ignored(tmp_path):
     (tmp_path / "latin.ply").write_bytes(head.replace("comment origin 5000000 5000000 0", "comment caf\xe9")
                                          .encode("latin-1") + rows.encode() + b"\n")
     assert np.abs(io.read(tmp_path / "latin.ply").world_xyz() - xyz).max() < 1e-5
+
+
+def test_ply_coordinates_named_in_capitals(tmp_path):
+    """PLY vertices with properties X Y Z (some exporters write capitals; the text reader took them,
+    the PLY reader refused them)."""
+    xyz = np.round(np.random.default_rng(5).uniform(0, 30, (20, 3)), 3)
+    head = "ply\nformat ascii 1.0\nelement vertex 20\nproperty double X\nproperty double Y\nproperty double Z\nend_header\n"
+    (tmp_path / "caps.ply").write_text(head + "\n".join(" ".join(f"{v:.3f}" for v in p) for p in xyz) + "\n")
+    assert np.abs(io.read(tmp_path / "caps.ply").world_xyz() - xyz).max() < 1e-5

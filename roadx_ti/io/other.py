@@ -196,7 +196,9 @@ def read_ply(path, origin=None) -> Cloud:
     _, count, props = elements[names.index("vertex")]
     if any(t == "list" for _, t in props) or any(t == "list" for e in before for _, t in e[2]):
         raise fail(path, "PLY vertex data with list properties is not supported")
-    if not {"x", "y", "z"} <= {p for p, _ in props}:
+    # X Y Z in capitals (some exporters): the coordinates all the same
+    axes = {p.lower(): p for p, _ in props if p.lower() in ("x", "y", "z")}
+    if len(axes) != 3:
         raise fail(path, "PLY vertices have no x y z properties")
     if fmt == "ascii" and count == 0:
         data = {p: np.zeros(0, t) for p, t in props}
@@ -220,7 +222,7 @@ def read_ply(path, origin=None) -> Cloud:
                              f"{len(raw) // max(dtype.itemsize, 1)} present")
         table = raw.view(dtype)
         data = {p: table[p].astype(np.dtype(t).newbyteorder("=")) for p, t in props}
-    world = np.column_stack([data.pop("x"), data.pop("y"), data.pop("z")]).astype(np.float64)
+    world = np.column_stack([data.pop(axes[a]) for a in ("x", "y", "z")]).astype(np.float64)
     if origin is not None and origin is stored_origin and len(world) and np.all(np.isfinite(world)):
         lo, hi = world.min(axis=0), world.max(axis=0)
         if np.any(origin < lo - ORIGIN_REACH) or np.any(origin > hi + ORIGIN_REACH):
