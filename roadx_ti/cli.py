@@ -274,13 +274,16 @@ def cmd_run(args) -> int:
         if not fits_new_file(cloud.xyz):     # say it now, not after the whole pipeline
             raise DataError(f"{out}: the points of {cloud.source} span more than +-2147 km from their origin, "
                             "which a LAS file at 1 mm scale cannot hold; split the cloud or write .ply/.npz")
-    # columns the output format cannot hold: say it now, not after the whole pipeline
-    io.check_writable(out, cloud, {"roadx_label": "uint8", "segment_id": "int32"})
     if memory.points_before_reading(cfg) is None:   # formats without a header count: now it is known
         memory.check_run(cfg, cloud.n, cloud)
         if cfg.tiled:
             del cloud
             return _run_tiled(cfg, out, args)
+    # columns the output format cannot hold: say it now, not after the whole pipeline
+    from roadx_ti.stages import stage_class
+    written = {"roadx_label": "uint8", "segment_id": "int32"}       # and each stage's own data (float32)
+    written.update({name: "float32" for stage, _ in stage_specs for name in stage_class(stage).writes})
+    io.check_writable(out, cloud, written)
 
     arch = backend.init(cfg.backend, threads=cfg.threads)
     log.info("Taichi backend: %s", arch)

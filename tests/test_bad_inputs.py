@@ -256,7 +256,7 @@ def case_road_without_colour_or_intensity(d):
     """The road pipeline on points with neither colour nor intensity: a warning that the road is chosen
     by kerbs and shape alone (it switched silently, finding much less road), then a valid output."""
     src = write_las(d / "in" / "grey.laz", bumpy_ground(3000, side=30.0))
-    return _demo(d, src, code=0, warning="no colour and no intensity that varies",
+    return _demo(d, src, code=0, warning="no colour and no intensity: the road",
                  check=lambda c: _las_result(c, src))
 
 

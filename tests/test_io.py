@@ -629,3 +629,29 @@ def test_ply_coordinates_named_in_capitals(tmp_path):
     head = "ply\nformat ascii 1.0\nelement vertex 20\nproperty double X\nproperty double Y\nproperty double Z\nend_header\n"
     (tmp_path / "caps.ply").write_text(head + "\n".join(" ".join(f"{v:.3f}" for v in p) for p in xyz) + "\n")
     assert np.abs(io.read(tmp_path / "caps.ply").world_xyz() - xyz).max() < 1e-5
+
+
+def test_ply_origin_of_a_high_survey_is_kept(tmp_path, caplog):
+    """Our tiled runs write PLY with the catalog's origin (z 0) beside points 1,500 m up: that origin is
+    theirs (within float32's reach) and is kept, local coordinates bit for bit; only an origin farther
+    than ORIGIN_REACH from the points is ignored, with a warning."""
+    from roadx_ti.io.other import ORIGIN_REACH
+
+    xyz = np.round(np.random.default_rng(6).uniform(0, 30, (20, 3)), 3) + [0, 0, 1500.0]
+    rows = "\n".join(" ".join(f"{v:.3f}" for v in p) for p in xyz)
+    for name, origin, kept in (("high.ply", "0 0 0", True), ("far.ply", f"{2 * ORIGIN_REACH:.0f} 0 0", False)):
+        (tmp_path / name).write_text(f"ply\nformat ascii 1.0\ncomment origin {origin}\nelement vertex 20\n"
+                                     "property double x\nproperty double y\nproperty double z\nend_header\n" + rows + "\n")
+        caplog.clear()
+        cloud = io.read(tmp_path / name)
+        assert (cloud.origin.tolist() == [float(v) for v in origin.split()]) == kept
+        assert ("lies far from its points" in caplog.text) == (not kept)
+        assert np.abs(cloud.world_xyz() - xyz).max() < 1e-4
+
+
+def test_decimal_comma_when_a_later_line_has_none(tmp_path):
+    """'1,5;2,5;3,5' then '4;5;6' (whole numbers need no comma): both are data, not a header line."""
+    (tmp_path / "dc.csv").write_text("1,5;2,5;3,5\n4;5;6\n7,25;8;9\n")
+    assert np.allclose(io.read(tmp_path / "dc.csv").world_xyz(), [[1.5, 2.5, 3.5], [4, 5, 6], [7.25, 8, 9]])
+    (tmp_path / "latin.xyz").write_bytes("# H\xf6he in m\n1 2 3\n4 5 6\n".encode("latin-1"))
+    assert io.read(tmp_path / "latin.xyz").n == 2       # a Latin-1 comment was 'not a point table'

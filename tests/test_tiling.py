@@ -349,3 +349,40 @@ def test_catalog_refuses_bad_inputs(tmp_path, shared_data):
         tiling.catalog([one, one])
     with pytest.raises(io.InputError, match="refusing to write over the input"):
         tiling.run_catalog(ground_cfg(), [one], one, progress=False)
+
+
+def test_catalog_coordinate_systems_and_grids(tmp_path, caplog):
+    """check_compatible: two horizontal CRSs refused; a compound CRS beside its own horizontal CRS (a tool
+    dropped the vertical one) and a file without CRS warned of; scales that put points off the first
+    file's grid warned of for a merged LAS/LAZ only (other formats are written in world coordinates),
+    whole multiples and offsets whole steps apart not."""
+    from rasterio.crs import CRS
+
+    from cli_helpers import bumpy_ground, write_las
+    from roadx_ti.tiling.catalogs import catalog, check_compatible
+
+    def files(*specs):
+        folder = tmp_path / f"c{len(list(tmp_path.iterdir()))}"
+        folder.mkdir()
+        for k, (crs, scale, offset) in enumerate(specs):
+            write_las(folder / f"{k}.laz", bumpy_ground(200, seed=k) + [25.0 * k, 0, 0], scale=scale, offset=offset,
+                      crs_wkt=None if crs is None else CRS.from_user_input(crs).to_wkt())
+        return catalog(folder)
+
+    with pytest.raises(io.InputError, match="different coordinate systems"):
+        check_compatible(files(("EPSG:25832", 0.01, None), ("EPSG:2154", 0.01, None)), merged_las=True)
+    caplog.clear()
+    check_compatible(files(("EPSG:25832+5783", 0.01, None), ("EPSG:25832", 0.01, None)), merged_las=True)
+    assert "the same horizontal CRS" in caplog.text
+    caplog.clear()
+    check_compatible(files(("EPSG:25832", 0.01, None), (None, 0.01, None)), merged_las=True)
+    assert "name no coordinate system" in caplog.text
+    fine = files((None, 0.001, [500000, 4500000, 0]), (None, 0.01, [500000.5, 4500000, 0]))
+    caplog.clear()
+    check_compatible(fine, merged_las=True)
+    assert "other scales or offsets" not in caplog.text
+    off_grid = files((None, 0.01, None), (None, 0.001, None))
+    check_compatible(off_grid, merged_las=False)
+    assert "other scales or offsets" not in caplog.text
+    check_compatible(off_grid, merged_las=True)
+    assert "other scales or offsets" in caplog.text

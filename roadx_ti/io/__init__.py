@@ -134,6 +134,9 @@ def write(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=No
             raise fail(path, f"cannot be written: {' '.join(str(exc).split())}") from None
 
 
+WRITABLE_CHUNK = 1 << 20    # points check_writable converts at a time
+
+
 def check_writable(path, cloud: Cloud, result_dims: dict) -> None:
     """Before a run: raise InputError now, not after the whole pipeline, when ``cloud``'s own
     columns cannot be written to ``path``'s format (a float 'intensity' into LAS's integer field,
@@ -145,15 +148,18 @@ def check_writable(path, cloud: Cloud, result_dims: dict) -> None:
         return
     classification = np.zeros(cloud.n, np.uint8)
     extra = {name: np.zeros(cloud.n, dtype) for name, dtype in result_dims.items()}
-    if kind == "las":
-        _las_write.las_from_arrays(path, cloud, classification, extra, None)
-        return
-    try:
-        _, columns = _other.writable_columns(cloud, classification, extra, None)
-    except ValueError as exc:
-        raise fail(path, f"{cloud.source or 'the input'} cannot be written to {path.suffix}: {exc}") from None
-    if kind == "ply":
-        _other.ply_properties(path, columns)
+    # the writer's own conversion, a chunk of points at a time: its memory stays small
+    for start in range(0, max(cloud.n, 1), WRITABLE_CHUNK):
+        index = np.arange(start, min(start + WRITABLE_CHUNK, cloud.n))
+        if kind == "las":
+            _las_write.las_from_arrays(path, cloud, classification, extra, index)
+            continue
+        try:
+            _, columns = _other.writable_columns(cloud, classification, extra, index)
+        except ValueError as exc:
+            raise fail(path, f"{cloud.source or 'the input'} cannot be written to {path.suffix}: {exc}") from None
+        if kind == "ply":
+            _other.ply_properties(path, columns)
 
 
 def info(path) -> dict:

@@ -30,7 +30,8 @@ log = logging.getLogger(__name__)
 
 INTENSITY_NAMES = ("intensity", "scalar_intensity", "i")
 CLASS_NAMES = ("classification", "scalar_classification", "class")
-ORIGIN_REACH = 1000.0     # m: a PLY's stored origin farther than this outside its points is not theirs
+ORIGIN_REACH = 2.0**16    # m: a PLY's stored origin farther than this from a point is not its points'
+                          # (float32 offsets from it would step by 4 mm and more)
 TEXT_ENCODING = "utf-8-sig"     # UTF-8, with or without the byte-order mark spreadsheets write
 RGB_NAMES = (("red", "green", "blue"), ("r", "g", "b"), ("diffuse_red", "diffuse_green", "diffuse_blue"))
 
@@ -224,8 +225,7 @@ def read_ply(path, origin=None) -> Cloud:
         data = {p: table[p].astype(np.dtype(t).newbyteorder("=")) for p, t in props}
     world = np.column_stack([data.pop(axes[a]) for a in ("x", "y", "z")]).astype(np.float64)
     if origin is not None and origin is stored_origin and len(world) and np.all(np.isfinite(world)):
-        lo, hi = world.min(axis=0), world.max(axis=0)
-        if np.any(origin < lo - ORIGIN_REACH) or np.any(origin > hi + ORIGIN_REACH):
+        if float(np.abs(world - origin).max()) > ORIGIN_REACH:
             # not our writer's origin of these points: float32 offsets from it would round them
             log.warning("%s: its 'comment origin' %s lies far from its points; ignored", path,
                         " ".join(f"{v:.10g}" for v in origin))
@@ -452,8 +452,9 @@ def _text_layout(path):
         return None, names, skip, None, False
     # semicolons (spreadsheets in locales with a decimal comma write them: commas are then in the
     # values), commas, else whitespace
-    delimiter = next((d for d in (";", ",") if d in lines[0]), None)
-    decimal_comma = delimiter == ";" and "," in lines[-1]
+    # (from the last line read: a data line, when the first was a header)
+    delimiter = next((d for d in (";", ",") if d in lines[-1]), None)
+    decimal_comma = delimiter == ";" and any("," in line for line in lines)
 
     def fields(line):
         tokens = [t.strip().strip('"').strip("'") for t in (line.split(delimiter) if delimiter else line.split())]
@@ -489,9 +490,14 @@ def read_text(path, origin=None) -> Cloud:
     delimiter, names, skip, columns, decimal_comma = _text_layout(path)
     # '1,5;2,5;3,5': semicolons between values, commas in them (locales with a decimal comma)
     convert = {"converters": lambda t: _number(t, True)} if decimal_comma else {}
+    def load(encoding):
+        return np.loadtxt(path, dtype=np.float64, delimiter=delimiter, skiprows=skip, encoding=encoding,
+                          ndmin=2, usecols=columns, **convert, **_quoting(path, skip))
     try:
-        table = np.loadtxt(path, dtype=np.float64, delimiter=delimiter, skiprows=skip, encoding=TEXT_ENCODING,
-                           ndmin=2, usecols=columns, **convert, **_quoting(path, skip))
+        try:
+            table = load(TEXT_ENCODING)
+        except UnicodeDecodeError:    # a comment or header in Latin-1 ('# Höhe'): the numbers are ASCII
+            table = load("latin-1")
     except ValueError as exc:
         # numpy's reason without its advice to the programmer ("use `usecols` ...")
         reason = " ".join(str(exc).split()).split("; use `usecols`")[0]

@@ -174,8 +174,8 @@ class RoadRegions(Stage):
         xyz = cloud.xyz
         source, colour = colour_channels(cloud)
         if source == "geometry":
-            ctx.log.warning("road_regions: the points carry no colour and no intensity that varies: the road "
-                            "is chosen by kerbs and shape alone, which finds much less of it")
+            ctx.log.warning("road_regions: the points carry no colour and no intensity: the road is chosen by "
+                            "kerbs and shape alone, which finds much less of it")
         indices, distances = knn(xyz, k)
         spacing = float(np.median(distances[:, -1]))
         gk = min(o.graph_k or k, k)

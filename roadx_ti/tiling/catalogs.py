@@ -71,11 +71,12 @@ def catalog(inputs, warn: bool = True) -> list[CatalogFile]:
             for path, bounds, count, z_range in io.read_headers(paths)]
 
 
-def check_compatible(files: list[CatalogFile], merged: bool, log=None) -> None:
+def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> None:
     """Files that one run may take together (LAS/LAZ headers; other formats carry neither CRS nor
     scales): an InputError when two name different coordinate systems (their coordinates do not
     share one frame: tiles, buffers and the merged output would mix them); a warning when some
-    name one and others none (assumed the same), and, for a merged output, when their scales or
+    name one and others none (assumed the same) or only their vertical CRSs differ, and, for a
+    merged LAS/LAZ output (written from the records: other formats take world coordinates), when their scales or
     offsets put their coordinates off the first file's grid (the merged file takes the first file's
     scales and offsets: the others' points are rounded to it)."""
     from roadx_ti import io
@@ -97,7 +98,11 @@ def check_compatible(files: list[CatalogFile], merged: bool, log=None) -> None:
     if named:
         first_path, first = next(iter(named.items()))
         for path, other in named.items():
-            if other != first:
+            if other != first and _horizontal(other) == _horizontal(first):
+                # e.g. EPSG:25832+5783 beside EPSG:25832 (a tool dropped the vertical CRS): x, y agree
+                log.warning("%s is in %s, %s in %s: the same horizontal CRS, taken as one survey",
+                            first_path, _crs_name(first), path, _crs_name(other))
+            elif other != first:
                 raise io.InputError(f"the inputs are in different coordinate systems: {first_path} is in "
                                     f"{_crs_name(first)}, {path} in {_crs_name(other)}; reproject them to one "
                                     "(e.g. pdal translate with filters.reprojection) or run them apart")
@@ -105,7 +110,7 @@ def check_compatible(files: list[CatalogFile], merged: bool, log=None) -> None:
         if unnamed:
             log.warning("%d input file(s) name no coordinate system (e.g. %s); taken to be in %s like %s",
                         len(unnamed), unnamed[0], _crs_name(first), first_path)
-    if merged:
+    if merged_las:
         first_path = las[0].path
         differ = [f.path for f in las if not _on_grid(grids[f.path], grids[first_path])]
         if differ:
@@ -125,6 +130,28 @@ def _on_grid(grid, first) -> bool:
         if abs(steps - round(steps)) > 1e-6 or round(steps) < 1 or abs(shift - round(shift)) > 1e-6:
             return False
     return True
+
+
+def _horizontal(crs):
+    """The horizontal part of a compound CRS (WKT1 COMPD_CS: its first child), else the CRS."""
+    from rasterio.crs import CRS
+    from rasterio.errors import CRSError
+
+    wkt = crs.to_wkt()
+    if not wkt.startswith("COMPD_CS["):
+        return crs
+    start = min((i for i in (wkt.find("PROJCS["), wkt.find("GEOGCS[")) if i >= 0), default=-1)
+    if start < 0:
+        return crs
+    depth = 0
+    for end in range(start, len(wkt)):
+        depth += {"[": 1, "]": -1}.get(wkt[end], 0)
+        if depth == 0 and wkt[end] == "]":
+            try:
+                return CRS.from_wkt(wkt[start:end + 1])
+            except CRSError:
+                return crs
+    return crs
 
 
 def _crs_name(crs) -> str:

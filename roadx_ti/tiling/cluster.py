@@ -11,7 +11,7 @@ from roadx_ti.tiling.errors import ClusterError
 
 CONNECT_TIMEOUT = 5.0            # s: reaching the scheduler
 WORKER_TIMEOUT = 30.0            # s: waiting for the first worker
-MAX_HANDSHAKE_FRAMES = 1 << 16   # a Dask handshake's frame count is small; more: another protocol
+MAX_HANDSHAKE_BYTES = 1 << 24    # a Dask handshake's length is small; more: another protocol
 # what must match between the client and every worker (README, Scale-out)
 ENVIRONMENT_PACKAGES = ("numpy", "laspy", "lazrs", "scipy", "dask", "distributed")
 
@@ -49,10 +49,10 @@ def unreadable(paths) -> list:
 def _reachable(address: str, timeout: float) -> None:
     """A plain TCP connection to a tcp:// scheduler address, so that a closed port or an unknown
     host fails at once instead of after the client's retries; and a check that what answers there
-    is a Dask scheduler. A Dask server writes its handshake as soon as a connection opens (a frame
-    count, 8 bytes little-endian, then the frames); a web server (the dashboard's port 8787) waits
-    for a request, which the client's handshake is not: the client then waited for ever, and data
-    from another kind of server was read as a frame length (an allocation of exabytes)."""
+    is a Dask scheduler. A Dask server writes its handshake as soon as a connection opens (its
+    length, 8 bytes, then the message); a web server (the dashboard's port 8787) waits for a
+    request, which the client's handshake is not: the client then waited for ever, and data from
+    another kind of server was read as a length (an allocation of exabytes)."""
     from urllib.parse import urlsplit
 
     if not address.startswith("tcp://"):
@@ -70,20 +70,24 @@ def _reachable(address: str, timeout: float) -> None:
         why = exc.strerror or type(exc).__name__
         raise ClusterError(f"cannot reach the Dask scheduler at {address} ({why}); start `dask scheduler` "
                            "there, or run without --scheduler") from None
-    first = b""
+    length = b""
     try:
         with connection:
-            while len(first) < 8:
-                chunk = connection.recv(8 - len(first))
+            while len(length) < 8:
+                chunk = connection.recv(8 - len(length))
                 if not chunk:
                     break
-                first += chunk
+                length += chunk
     except OSError:       # nothing within the timeout, or a reset
         pass
-    if len(first) < 8 or int.from_bytes(first, "little") > MAX_HANDSHAKE_FRAMES:
-        raise ClusterError(f"what answers at {address} is not a Dask scheduler (no Dask handshake within "
-                           f"{timeout:g} s); give the scheduler's address (`dask scheduler` prints it, port "
-                           "8786 by default; 8787 is its dashboard)")
+    hint = "give the scheduler's address (`dask scheduler` prints it, port 8786 by default; 8787 is its dashboard)"
+    if not length:
+        raise ClusterError(f"what listens at {address} sent no Dask handshake within {timeout:g} s: not a Dask "
+                           f"scheduler, or one too busy to answer; {hint}")
+    # the length in the server's byte order (struct 'Q'): small one way or the other
+    if len(length) < 8 or min(int.from_bytes(length, "little"), int.from_bytes(length, "big")) > MAX_HANDSHAKE_BYTES:
+        raise ClusterError(f"what answers at {address} is not a Dask scheduler (it sent other bytes than a Dask "
+                           f"handshake); {hint}")
 
 
 class _DaskSession:

@@ -98,7 +98,8 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     if workers is not None and int(workers) < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     files = catalog(input_paths)
-    check_compatible(files, merged=output_mode == "merged", log=log)
+    check_compatible(files, merged_las=output_mode == "merged" and Path(output_path).suffix.lower() in (".las", ".laz"),
+                     log=log)
     total_points = sum(f.count for f in files)
     if total_points == 0:
         raise io.InputError(f"the inputs hold no points: {', '.join(f.path for f in files)}")
