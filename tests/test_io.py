@@ -655,3 +655,19 @@ def test_decimal_comma_when_a_later_line_has_none(tmp_path):
     assert np.allclose(io.read(tmp_path / "dc.csv").world_xyz(), [[1.5, 2.5, 3.5], [4, 5, 6], [7.25, 8, 9]])
     (tmp_path / "latin.xyz").write_bytes("# H\xf6he in m\n1 2 3\n4 5 6\n".encode("latin-1"))
     assert io.read(tmp_path / "latin.xyz").n == 2       # a Latin-1 comment was 'not a point table'
+
+
+def test_values_a_format_cannot_hold_are_one_error(tmp_path):
+    """An ASCII PLY uchar of 300 (it wrapped to 44 silently), and a string column written to a text table
+    (it failed in numpy after the run): InputError naming the property or column; check_writable says
+    the latter before any work."""
+    (tmp_path / "over.ply").write_text("ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                                       "property float z\nproperty uchar red\nend_header\n0 0 0 300\n1 1 1 5\n")
+    with pytest.raises(io.InputError, match="'red' .* holds values its type cannot, e.g. 300"):
+        io.read(tmp_path / "over.ply")
+    cloud = Cloud.from_world(np.zeros((3, 3)), attributes={"label": np.array(["a", "b", "c"])})
+    with pytest.raises(io.InputError, match="'label' of type <U1 cannot be written to a numeric text table"):
+        io.check_writable(tmp_path / "out.xyz", cloud, {"roadx_label": "uint8"})
+    with pytest.raises(io.InputError, match="'label' of type <U1"):
+        io.write(tmp_path / "out.xyz", cloud)
+    assert not (tmp_path / "out.xyz").exists()

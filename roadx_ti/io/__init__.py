@@ -160,6 +160,8 @@ def check_writable(path, cloud: Cloud, result_dims: dict) -> None:
             raise fail(path, f"{cloud.source or 'the input'} cannot be written to {path.suffix}: {exc}") from None
         if kind == "ply":
             _other.ply_properties(path, columns)
+        elif kind == "text":
+            _other.text_columns(path, columns)
 
 
 def info(path) -> dict:

@@ -213,6 +213,10 @@ def read_ply(path, origin=None) -> Cloud:
         if len(table) != count or (count and table.shape[1] != len(props)):
             raise fail(path, f"truncated or corrupt PLY file: {count} vertices declared, {len(table)} read")
         data = {p: table[:, k].astype(t) for k, (p, t) in enumerate(props)}
+        for k, (p, t) in enumerate(props):      # 300 in a uchar property wrapped to 44
+            if np.dtype(t).kind in "iu" and not np.array_equal(data[p], table[:, k]):
+                raise fail(path, f"PLY property {p!r} ({t}) holds values its type cannot, e.g. "
+                                 f"{table[:, k][data[p] != table[:, k]][0]:g}")
     else:
         order = "<" if fmt == "binary_little_endian" else ">"
         skip = sum(e[1] * sum(np.dtype(t).itemsize for _, t in e[2]) for e in before)
@@ -525,16 +529,24 @@ def write_text(path, cloud: Cloud, classification=None, extra_dims=None, subset=
     decimals = _coord_decimals(cloud)
     delimiter = "," if str(path).lower().endswith(".csv") else " "
     formats = [f"%.{decimals}f"] * 3 + ["%d" if a.dtype.kind in "iub" else "%.9g" for a in cols.values()]
+    text_columns(path, cols)
     table = np.empty((len(world), 3 + len(cols)), dtype=np.float64)
     table[:, :3] = world
     for k, a in enumerate(cols.values()):
-        if a.dtype.kind in "iu" and a.size and np.abs(a.astype(np.float64)).max() > 2**53:
-            raise fail(path, "64-bit integer column too large to write exactly as text")
         table[:, 3 + k] = a
     with atomic_output(path) as tmp:
         with open(tmp, "w", encoding="utf-8") as f:
             f.write("# " + delimiter.join(["x", "y", "z"] + list(cols)) + "\n")
             np.savetxt(f, table, fmt=formats, delimiter=delimiter)
+
+
+def text_columns(path, cols: dict) -> None:
+    """InputError for a column a numeric text table cannot hold exactly (strings, huge integers)."""
+    for name, a in cols.items():
+        if a.dtype.kind not in "biuf":
+            raise fail(path, f"column {name!r} of type {a.dtype} cannot be written to a numeric text table")
+        if a.dtype.kind in "iu" and a.size and np.abs(a.astype(np.float64)).max() > 2**53:
+            raise fail(path, "64-bit integer column too large to write exactly as text")
 
 
 READERS = {"ply": read_ply, "pcd": read_pcd, "npz": read_npz, "text": read_text}
