@@ -671,3 +671,15 @@ def test_values_a_format_cannot_hold_are_one_error(tmp_path):
     with pytest.raises(io.InputError, match="'label' of type <U1"):
         io.write(tmp_path / "out.xyz", cloud)
     assert not (tmp_path / "out.xyz").exists()
+
+
+def test_a_classification_column_outside_0_255_is_named_with_a_value(tmp_path):
+    """A CSV 'classification' column of 300 is kept as an attribute (LAS classes are 0..255); writing
+    it to LAS says which values do not fit (it said 'would hide the cloud's own classification')."""
+    xyz = np.random.default_rng(8).uniform(0, 10, (5, 3))
+    (tmp_path / "c.csv").write_text("x,y,z,classification\n" + "\n".join(
+        f"{p[0]:.3f},{p[1]:.3f},{p[2]:.3f},{c}" for p, c in zip(xyz, (2, 2, 300, 6, 2))) + "\n")
+    cloud = io.read(tmp_path / "c.csv")
+    assert cloud.classification is None and cloud.attributes["classification"].max() == 300
+    with pytest.raises(io.InputError, match=r"'classification' holds values the LAS classification field cannot \(e.g. 300\)"):
+        io.check_writable(tmp_path / "out.laz", cloud, {"roadx_label": "uint8"})

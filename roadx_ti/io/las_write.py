@@ -150,6 +150,14 @@ def _las_from_record(path, src, n: int, classification, extra_dims, index) -> la
     return laspy.LasData(header, record)
 
 
+def _example(a: np.ndarray) -> str:
+    """A value of a column for a message (its largest, or the first if not numeric)."""
+    a = np.asarray(a)
+    if not a.size:
+        return "none"
+    return f"{np.nanmax(a):g}" if a.dtype.kind in "iuf" else repr(a[0].item() if hasattr(a[0], "item") else a[0])
+
+
 def fits_new_file(local: np.ndarray) -> bool:
     """Whether local coordinates (m from the origin) fit a new LAS file's int32 at NEW_FILE_SCALE."""
     return not local.size or float(np.abs(local).max()) / NEW_FILE_SCALE <= 2**31 - 1.5
@@ -171,7 +179,9 @@ def las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> la
     for name, values in columns.items():
         a = per_point(name, values, n, index)
         if name in taken:
-            raise fail(path, f"attribute {name!r} would hide the cloud's own {name}; rename it")
+            # a column read under a standard name whose values that field cannot hold (classes of 300)
+            raise fail(path, f"column {name!r} holds values the LAS {name} field cannot (e.g. {_example(a)}); "
+                             "it would also hide the result's own; fix its values or rename it")
         if name in standard:
             standard_cols[name] = a
         else:
