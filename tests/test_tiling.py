@@ -386,3 +386,16 @@ def test_catalog_coordinate_systems_and_grids(tmp_path, caplog):
     assert "other scales or offsets" not in caplog.text
     check_compatible(off_grid, merged_las=True)
     assert "other scales or offsets" in caplog.text
+
+
+def test_a_warning_every_tile_repeats_is_logged_once(tmp_path, caplog):
+    """The road pipeline on points without colour, in 9 tiles: road_regions' warning once, not per tile."""
+    from cli_helpers import DEMO_FAST, bumpy_ground, write_las
+
+    src = write_las(tmp_path / "grey.laz", bumpy_ground(3000, side=30.0))
+    cfg = config.load(Path(__file__).resolve().parents[1] / "configs" / "demo.yaml",
+                      ["backend=cpu"] + [a for a in DEMO_FAST if a != "--set"])
+    caplog.set_level("WARNING", logger="roadx_ti")
+    summary = tiling.run_catalog(cfg, [str(src)], tmp_path / "out.laz", tile_size=10.0, progress=False)
+    assert len(summary["tiles"]) > 1
+    assert caplog.text.count("no colour and no intensity") == 1
