@@ -510,6 +510,8 @@ def cmd_eval(args) -> int:
         raise DataError(f"{args.pred} has {pred.n} points but {args.truth} has {truth.n}: "
                         "points are matched by order, the counts must be equal")
     for cloud, name in ((pred, args.pred), (truth, args.truth)):
+        if cloud.classification is None and "classification" in {k.lower() for k in cloud.attributes}:
+            raise DataError(f"{name}: its classification column holds values that are not classes 0..255")
         if cloud.classification is None:
             raise DataError(f"{name} has no classification")
     result = scores(class_mask(truth.classification, truth_classes), class_mask(pred.classification, pred_classes))

@@ -69,6 +69,10 @@ def test_eval_count_mismatch_is_data_error(tmp_path, road_scene):
     assert "counts must be equal" in proc.stderr and "Traceback" not in proc.stderr
     proc = run_cli("eval", "--pred", str(small), "--truth", str(small), "--truth-classes", "x")
     assert proc.returncode == 2 and "--truth-classes" in proc.stderr
+    table = tmp_path / "classes.csv"
+    table.write_text("x,y,z,classification\n0,0,0,2\n1,1,1,300\n")
+    proc = run_cli("eval", "--pred", str(table), "--truth", str(table), "--truth-classes", "2")
+    assert proc.returncode == 1 and "not classes 0..255" in proc.stderr     # was "has no classification"
     proc = run_cli("eval", "--pred", str(tmp_path), "--truth", str(small), "--truth-classes", "11")
     assert proc.returncode == 2 and "is a folder" in proc.stderr      # was "unknown extension '(none)'"
     proc = run_cli("synth", "--kind", "uav-road", "--points", "5k", "--seed", "-1", "-o", str(tmp_path / "n.laz"))
