@@ -20,6 +20,8 @@ from roadx_ti.errors import DataError  # a data mistake: exit 1
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
 log = logging.getLogger("roadx_ti")
+# the per-point results every run writes beside the classification (cmd_run's io.write): name -> dtype
+RESULT_DIMS = {"roadx_label": "uint8", "segment_id": "int32"}
 
 
 class UsageError(Exception):
@@ -281,7 +283,7 @@ def cmd_run(args) -> int:
             return _run_tiled(cfg, out, args)
     # columns the output format cannot hold: say it now, not after the whole pipeline
     from roadx_ti.stages import stage_class
-    written = {"roadx_label": "uint8", "segment_id": "int32"}       # and each stage's own data (float32)
+    written = dict(RESULT_DIMS)                 # and each stage's own data (float32)
     written.update({name: "float32" for stage, _ in stage_specs for name in stage_class(stage).writes})
     io.check_writable(out, cloud, written)
 

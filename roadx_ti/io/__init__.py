@@ -158,10 +158,8 @@ def check_writable(path, cloud: Cloud, result_dims: dict) -> None:
             _, columns = _other.writable_columns(cloud, classification, extra, index)
         except ValueError as exc:
             raise fail(path, f"{cloud.source or 'the input'} cannot be written to {path.suffix}: {exc}") from None
-        if kind == "ply":
-            _other.ply_properties(path, columns)
-        elif kind == "text":
-            _other.text_columns(path, columns)
+        if kind in _other.COLUMN_CHECKS:
+            _other.COLUMN_CHECKS[kind](path, columns)
 
 
 def info(path) -> dict:

@@ -155,7 +155,7 @@ def _example(a: np.ndarray) -> str:
     a = np.asarray(a)
     if not a.size:
         return "none"
-    return f"{np.nanmax(a):g}" if a.dtype.kind in "iuf" else repr(a[0].item() if hasattr(a[0], "item") else a[0])
+    return f"{np.nanmax(a):g}" if a.dtype.kind in "iuf" else repr(str(a[0]))
 
 
 def fits_new_file(local: np.ndarray) -> bool:

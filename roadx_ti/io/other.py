@@ -551,3 +551,5 @@ def text_columns(path, cols: dict) -> None:
 
 READERS = {"ply": read_ply, "pcd": read_pcd, "npz": read_npz, "text": read_text}
 WRITERS = {"ply": write_ply, "pcd": write_pcd, "npz": write_npz, "text": write_text}
+# each writer's own test of its columns (InputError), beyond writable_columns: io.check_writable runs it
+COLUMN_CHECKS = {"ply": ply_properties, "text": text_columns}
