@@ -11,8 +11,9 @@ BYTES_PER_POINT of the pipeline, measured on the CPU backend with /usr/bin/time 
 no PNG): the growth of the peak from 300 k to 1 M points per point (road 239, roof 226, ground 154
 B/pt; at 16 M, benchmarks/RESULTS.md: road 4.06 GB, roof 3.31 GB, ground 1.74 GB, i.e. 240, 195,
 98 B/pt above the base), rounded up; road re-measured 2026-12-02 (commit 0adc645, the region-level
-road_regions): 4 M 1.48 GB, 16 M 5.02 GiB, 335 and 324 B/pt above the base; roof 16 M 3.29 GiB,
-208 B/pt; ``synth`` (a synthetic scene generated and written, 2026-12-05): 1 M to 4 M points
+road_regions): 4 M 1.48 GB, 16 M 5.02 GiB, 335 and 324 B/pt above the base; again 2026-12-05 (a
+kernel's first call no longer keeps its arrays, the region merge re-keys through partition tables):
+4 M 1.17 GB, 16 M 3.95 GiB, 246 and 240 B/pt above the base; roof 16 M 3.29 GiB, 208 B/pt; ``synth`` (a synthetic scene generated and written, 2026-12-05): 1 M to 4 M points
 138 B/pt (uav-road) and 150 B/pt (als-roof). A run is refused (or tiled, with tiling.auto) when the
 estimate times SAFETY exceeds the budget.
 
@@ -30,7 +31,7 @@ log = logging.getLogger("roadx_ti")
 
 LIMIT_VARIABLE = "ROADX_TI_MEMORY_LIMIT"
 
-BYTES_PER_POINT = {"road": 340, "roof": 230, "ground": 160, "synth": 160}
+BYTES_PER_POINT = {"road": 260, "roof": 230, "ground": 160, "synth": 160}
 BASE_BYTES = 200 * 2**20          # peak RSS of a run over a few points (Python, Taichi, numpy, laspy)
 # a tile of a tiled run peaks higher per point of its window than a whole-file run per point:
 # the 137 M-point road survey (benchmarks/paper_scale, 8 GB limit) peaked at 10.8 GB on its

@@ -21,6 +21,12 @@ After the cut, road components (over continuous pairs) that are small or lack ke
 dropped (a large one too when no kerb at all lies along it, unless it is the largest: a paved yard
 of the asphalt's grey is a blob apart from the street network), and not-road groups mostly
 enclosed by road (markings, shadow patches, manholes) join it.
+
+Streets without kerbs (country lanes between verges, village streets, shared spaces) give the cut
+nothing to stand on: the lower sides of whatever steps the scene has (ditches, building feet)
+teach it no road colour. When it keeps no road at all, ``kerbless_road`` takes the road as what
+such a street is in plan: a long ribbon, of a plausible carriageway width, of ground that is
+neither chromatic nor green (asphalt, concrete, setts; verges, fields and gardens are not).
 All energies are integers after scaling, so the cut is deterministic.
 """
 from __future__ import annotations
@@ -30,6 +36,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components, maximum_flow
+
+
+MAX_RIBBON_CELLS = 1 << 26     # cells of kerbless_road's plan raster (64 M bytes per bool layer)
 
 
 @dataclass(frozen=True)
@@ -60,6 +69,13 @@ class Weights:
     min_area: float = 4.0         # and it covers at least this many m2
     absorb: float = 0.6           # a not-road group with this share of its boundary on road joins it
     absorb_max: float = 0.1       # ... when not larger than this share of the road
+    # streets without kerbs (country lanes, shared spaces): when the kerb cut keeps no road at all,
+    # the road is the ribbon of achromatic, not green ground (kerbless_road)
+    ribbon_min_width: float = 2.5     # m: narrower ribbons are paths, kerb lines or gaps
+    ribbon_max_width: float = 25.0    # m: ground wider than this everywhere is a yard, square or field
+    ribbon_min_length: float = 4.0    # a ribbon is at least this many times longer than wide ...
+    ribbon_min_area: float = 300.0    # ... and covers at least this many m2 (keep_area's scale)
+    ribbon_colour: float = 20.0       # colour units: other ribbons of the largest one's colour are road too
 
 
 def kerb_relations(graph, w: Weights):
@@ -261,3 +277,65 @@ def _absorb_enclosed(graph, road, kerb, w, rounds=3):
             break
         road |= (group >= 0) & take[np.maximum(group, 0)]
     return road, graph.count[road].sum() - before
+
+
+def kerbless_road(graph, xy, spacing: float, w: Weights = Weights()):
+    """bool per region: the road of a scene without kerbs (see the module docstring). The regions
+    neither chromatic nor green are rasterised in plan (cells of about two point spacings, sized
+    from the occupied cells' extent, gaps of one cell closed); the parts of that ground wider
+    than ``ribbon_max_width`` (an opening by a disk of half that width, by two distance
+    transforms) are taken out; the connected ribbons left that are long (``ribbon_min_length``
+    widths, ``ribbon_min_area``) and of a carriageway's width (twice the 90th percentile of the
+    distance to their edge) and of the largest such ribbon's mean colour (``ribbon_colour``) are
+    road, and so is each region with most of its points on them."""
+    from scipy import ndimage
+
+    n = graph.n_regions
+    road = np.zeros(n, bool)
+    if n == 0 or len(xy) == 0:
+        return road
+    mean = graph.mean_colour()
+    chroma = np.sqrt(((mean - mean.mean(axis=1, keepdims=True)) ** 2).sum(axis=1))
+    plain = (chroma <= w.max_chroma) & (excess_green(mean) < w.green_from)
+    cell = max(2.0 * float(spacing), 0.25)
+    ij = np.floor((np.asarray(xy, np.float64) - np.min(xy, axis=0)) / cell).astype(np.int64)
+    shape = tuple(int(v) + 1 for v in ij.max(axis=0))
+    if shape[0] * shape[1] > MAX_RIBBON_CELLS:
+        return road         # stray points far apart: no raster of the survey's extent
+    flat = ij[:, 0] * shape[1] + ij[:, 1]
+    on = plain[graph.label]
+    # a cell is plain ground when most of its points are
+    votes = np.bincount(flat, weights=np.where(on, 1.0, -1.0), minlength=shape[0] * shape[1])
+    ground = ndimage.binary_closing((votes > 0).reshape(shape), structure=np.ones((3, 3), bool),
+                                    border_value=0) | (votes > 0).reshape(shape)
+    half = 0.5 * w.ribbon_max_width
+    inside = ndimage.distance_transform_edt(ground) * cell
+    wide = ndimage.distance_transform_edt(~(inside > half)) * cell <= half
+    ribbon = ground & ~wide
+    parts, count = ndimage.label(ribbon, structure=np.ones((3, 3), bool))
+    if count == 0:
+        return road
+    index = np.arange(1, count + 1)
+    area = ndimage.sum_labels(np.ones(shape), parts, index) * cell * cell
+    width = 2.0 * np.array(ndimage.labeled_comprehension(inside, parts, index, lambda v: np.percentile(v, 90),
+                                                         float, 0.0))
+    length = area / np.maximum(width, 1e-9)
+    keep = (area >= w.ribbon_min_area) & (width >= w.ribbon_min_width) & (width <= w.ribbon_max_width) \
+        & (length >= w.ribbon_min_length * width)
+    if not keep.any():
+        return road
+    # one street network, one surface: the largest ribbon is the road, and the others are too
+    # when their colour is its colour (a gravel yard round a farm or a field in a tree's shadow
+    # make ribbons of other colours)
+    on_ribbon = on & (parts.ravel()[flat] > 0)
+    which = parts.ravel()[flat[on_ribbon]] - 1
+    colour = mean[graph.label[on_ribbon]]
+    points = np.maximum(np.bincount(which, minlength=count), 1)
+    ribbon_colour = np.column_stack([np.bincount(which, weights=colour[:, c], minlength=count) for c in range(3)]) \
+        / points[:, None]
+    main = int(np.argmax(np.where(keep, area, -1.0)))
+    keep &= np.linalg.norm(ribbon_colour - ribbon_colour[main], axis=1) <= w.ribbon_colour
+    kept = np.concatenate([[False], keep])[parts].ravel()
+    share = np.bincount(graph.label, weights=kept[flat] & on, minlength=n) / np.maximum(
+        np.bincount(graph.label, minlength=n), 1)
+    return share >= 0.5

@@ -149,6 +149,27 @@ def test_region_merging_host_rounds_equal_the_kernel_rounds(seed):
     assert device.n_regions < n / 5
 
 
+@pytest.mark.parametrize("table_bits", [4, 6])
+def test_region_merging_through_partition_tables_is_the_same(monkeypatch, table_bits):
+    """The rounds re-key their pairs one hash partition at a time when one table would exceed
+    2^MAX_TABLE_BITS slots; tiny tables force many partitions (and partitions larger than their
+    share, whose table then grows) and must give the merge of one table and of the host rounds."""
+    n, a, b, up, down, colour = _merge_case(1, n=3000)
+    args = (n, a, b, up, down, colour, (1.5, 3.0, 6.0), 10.0, 0.1, 6)
+    whole = regions.merge_regions_by_colour(*args, host=False)
+    host = regions.merge_regions_by_colour(*args, host=True)
+    monkeypatch.setattr(regions, "MAX_TABLE_BITS", table_bits)
+    calls = []
+    real = regions._insert_pairs
+    monkeypatch.setattr(regions, "_insert_pairs", lambda *a: (calls.append(a[7]), real(*a))[1])
+    parted = regions.merge_regions_by_colour(*args, host=False)
+    assert max(calls) >= 2 and len(calls) > 20       # part_bits: several partitions per round
+    for other in (whole, host):
+        assert np.array_equal(parted.label, other.label)
+        assert np.array_equal(parted.count, other.count) and np.array_equal(parted.colour_sum, other.colour_sum)
+        assert np.array_equal(parted.pa, other.pa) and np.array_equal(parted.edges, other.edges)
+
+
 @pytest.mark.parametrize("host", [False, True])
 def test_region_merging_takes_the_kerb_evidence_as_a_function(host):
     """The stage hands the kerb probabilities over as a function of edge indices (no two full

@@ -86,3 +86,38 @@ def test_a_large_component_without_kerbs_apart_from_the_street_is_not_road():
     # the cut takes the yard with the lot it touches; without the kerb share, their area keeps them
     road, _ = label_road(graph, 60.0, Weights(keep_area_kerb=0.0))
     assert road.tolist() == [True, False, False, True, True]
+
+
+def _kerbless_lane(seed=0, density=12.0):
+    """A country lane with no kerb: a 6 m grey carriageway curving across 120 x 80 m of ground, green
+    verges of 2 m, tan fields, and a yard of the same grey 38 x 26 m apart from the lane (all flat
+    ground at one height, as the cloth leaves it). Returns the cloud and the truth (lane points)."""
+    from roadx_ti.cloud import Cloud
+    rng = np.random.default_rng(seed)
+    n = int(density * 120 * 80)
+    xy = rng.random((n, 2)) * [120.0, 80.0]
+    off = xy[:, 1] - (40.0 + 8.0 * np.sin(xy[:, 0] / 25.0))
+    lane = np.abs(off) < 3.0
+    verge = ~lane & (np.abs(off) < 5.0)
+    yard = (xy[:, 0] > 62) & (xy[:, 0] < 100) & (xy[:, 1] < 26)
+    rgb = np.where(lane[:, None] | yard[:, None], [95.0, 95.0, 98.0],
+                   np.where(verge[:, None], [70.0, 100.0, 50.0], [175.0, 155.0, 110.0]))
+    rgb = np.clip(rgb + rng.normal(0, 4.0, (n, 3)), 0, 255).astype(np.uint16)
+    z = 0.01 * xy[:, 0] + rng.normal(0, 0.02, n)
+    xyz = np.column_stack([xy, z]).astype(np.float32)
+    return Cloud(xyz=xyz, origin=np.zeros(3), rgb=rgb, color_depth=8), lane, yard
+
+
+def test_a_lane_without_kerbs_is_found_by_its_ribbon_and_a_yard_of_its_grey_is_not(ti_arch):
+    """No kerb anywhere: the kerb cut keeps no road, and road_regions takes the ribbon of plain
+    (not chromatic, not green) ground of a carriageway's width; the yard of the same grey, wider
+    than any carriageway, stays out."""
+    from roadx_ti.stages import stage_class
+    from roadx_ti.stages.base import StageContext
+    cloud, lane, yard = _kerbless_lane()
+    stage = stage_class("road_regions")(stage_class("road_regions").Options())
+    result = stage.run(cloud, StageContext(seed=0))
+    road = result.labels == 11
+    assert result.info["kerbless_road_points"] > 0
+    assert np.sum(road & lane) / np.sum(road | lane) > 0.9, np.sum(road & lane) / np.sum(road | lane)
+    assert np.mean(road[yard]) < 0.02

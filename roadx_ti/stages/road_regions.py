@@ -32,7 +32,7 @@ from scipy.special import ndtr
 from roadx_ti.chunks import over_chunks
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.regions import MAX_ROW
-from roadx_ti.road_graph import Weights, label_road
+from roadx_ti.road_graph import Weights, kerbless_road, label_road
 from roadx_ti.stages.base import CLASS_OTHER, CLASS_ROAD, MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
 
 # robust sigma from a median absolute value (Gaussian): 1.4826 * MAD
@@ -209,6 +209,10 @@ class RoadRegions(Stage):
             centroid = np.column_stack([np.bincount(graph.label, weights=xyz[:, c], minlength=graph.n_regions)
                                         / count for c in (0, 1)])
         road_region, facts = label_road(graph, density, weights, centroid=centroid)
+        if not road_region.any():
+            # no kerb to stand on anywhere: a street without kerbs, taken by its shape in plan
+            road_region = kerbless_road(graph, xyz[:, :2], spacing, weights)
+            facts["kerbless_road_points"] = int(graph.count[road_region].sum())
         is_road = road_region[graph.label]
         for _ in range(o.boundary_passes):
             # the road's edge on the kerb itself: boundary points go to the side of their height
