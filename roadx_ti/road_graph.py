@@ -38,7 +38,9 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, connected_components, maximum_flow
 
 
-MAX_RIBBON_CELLS = 1 << 26     # cells of kerbless_road's plan raster (64 M bytes per bool layer)
+# bytes per cell of kerbless_road's plan raster at its peak (float64 votes and distances, int32 parts)
+RIBBON_BYTES_PER_CELL = 48
+STRAY_SHARE = 0.05             # % of the points at each end of x and y that may lie off that raster
 
 
 @dataclass(frozen=True)
@@ -290,6 +292,8 @@ def kerbless_road(graph, xy, spacing: float, w: Weights = Weights()):
     road, and so is each region with most of its points on them."""
     from scipy import ndimage
 
+    from roadx_ti.memory import dense_limit
+
     n = graph.n_regions
     road = np.zeros(n, bool)
     if n == 0 or len(xy) == 0:
@@ -298,12 +302,16 @@ def kerbless_road(graph, xy, spacing: float, w: Weights = Weights()):
     chroma = np.sqrt(((mean - mean.mean(axis=1, keepdims=True)) ** 2).sum(axis=1))
     plain = (chroma <= w.max_chroma) & (excess_green(mean) < w.green_from)
     cell = max(2.0 * float(spacing), 0.25)
-    ij = np.floor((np.asarray(xy, np.float64) - np.min(xy, axis=0)) / cell).astype(np.int64)
+    xy = np.asarray(xy, np.float64)
+    # the raster spans the points less a few strays (real files carry points kilometres away)
+    lo, hi = np.percentile(xy, STRAY_SHARE, axis=0) - cell, np.percentile(xy, 100.0 - STRAY_SHARE, axis=0) + cell
+    inside_box = np.all((xy >= lo) & (xy <= hi), axis=1)
+    ij = np.floor((np.clip(xy, lo, hi) - lo) / cell).astype(np.int64)
     shape = tuple(int(v) + 1 for v in ij.max(axis=0))
-    if shape[0] * shape[1] > MAX_RIBBON_CELLS:
-        return road         # stray points far apart: no raster of the survey's extent
+    if shape[0] * shape[1] > dense_limit(len(xy), RIBBON_BYTES_PER_CELL):
+        return road
     flat = ij[:, 0] * shape[1] + ij[:, 1]
-    on = plain[graph.label]
+    on = plain[graph.label] & inside_box
     # a cell is plain ground when most of its points are
     votes = np.bincount(flat, weights=np.where(on, 1.0, -1.0), minlength=shape[0] * shape[1])
     ground = ndimage.binary_closing((votes > 0).reshape(shape), structure=np.ones((3, 3), bool),

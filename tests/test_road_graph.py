@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from roadx_ti.kernels.regions import RegionGraph
 from roadx_ti.road_graph import Weights, excess_green, label_road
@@ -108,13 +109,20 @@ def _kerbless_lane(seed=0, density=12.0):
     return Cloud(xyz=xyz, origin=np.zeros(3), rgb=rgb, color_depth=8), lane, yard
 
 
-def test_a_lane_without_kerbs_is_found_by_its_ribbon_and_a_yard_of_its_grey_is_not(ti_arch):
+@pytest.mark.parametrize("strays", [0, 3])
+def test_a_lane_without_kerbs_is_found_by_its_ribbon_and_a_yard_of_its_grey_is_not(ti_arch, strays):
     """No kerb anywhere: the kerb cut keeps no road, and road_regions takes the ribbon of plain
     (not chromatic, not green) ground of a carriageway's width; the yard of the same grey, wider
-    than any carriageway, stays out."""
+    than any carriageway, stays out. A few stray points 20 km away do not stop it."""
+    from roadx_ti.cloud import Cloud
     from roadx_ti.stages import stage_class
     from roadx_ti.stages.base import StageContext
     cloud, lane, yard = _kerbless_lane()
+    if strays:
+        far = np.array([[20_000.0, 0.0, 0.5], [0.0, -20_000.0, 0.3], [20_000.0, 20_000.0, 0.0]], np.float32)[:strays]
+        cloud = Cloud(xyz=np.vstack([cloud.xyz, far]), origin=cloud.origin, color_depth=8,
+                      rgb=np.vstack([cloud.rgb, np.full((strays, 3), 95, np.uint16)]))
+        lane, yard = np.append(lane, np.zeros(strays, bool)), np.append(yard, np.zeros(strays, bool))
     stage = stage_class("road_regions")(stage_class("road_regions").Options())
     result = stage.run(cloud, StageContext(seed=0))
     road = result.labels == 11
