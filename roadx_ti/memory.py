@@ -13,7 +13,8 @@ B/pt; at 16 M, benchmarks/RESULTS.md: road 4.06 GB, roof 3.31 GB, ground 1.74 GB
 98 B/pt above the base), rounded up; road re-measured 2026-12-02 (commit 0adc645, the region-level
 road_regions): 4 M 1.48 GB, 16 M 5.02 GiB, 335 and 324 B/pt above the base; again 2026-12-05 (a
 kernel's first call no longer keeps its arrays, the region merge re-keys through partition tables):
-4 M 1.17 GB, 16 M 3.95 GiB, 246 and 240 B/pt above the base; roof 16 M 3.29 GiB, 208 B/pt; ``synth`` (a synthetic scene generated and written, 2026-12-05): 1 M to 4 M points
+4 M 1.17 GB, 16 M 3.95 GiB, 246 and 240 B/pt above the base (and without the
+canonical copy of the cloud through the stages: 4 M 1.08 GB, 16 M 3.53 GB, 224 and 213 B/pt); roof 16 M 3.29 GiB, 208 B/pt; ``synth`` (a synthetic scene generated and written, 2026-12-05): 1 M to 4 M points
 138 B/pt (uav-road) and 150 B/pt (als-roof). A run is refused (or tiled, with tiling.auto) when the
 estimate times SAFETY exceeds the budget.
 

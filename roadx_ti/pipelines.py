@@ -69,8 +69,10 @@ def run(cloud: Cloud, stages, *, ctx: StageContext | None = None, truth: np.ndar
     depend on the input's point order; the arrays returned are in the input's order."""
     order = canonical_order(cloud)
     if order is None:
-        return _run(cloud, stages, ctx, truth, default_class, progress, target_class)
-    result = _run(cloud.subset(order), stages, ctx, None if truth is None else np.asarray(truth)[order],
+        return _run(cloud, None, stages, ctx, truth, default_class, progress, target_class)
+    if cloud.n < 2**31:
+        order = order.astype(np.int32)
+    result = _run(cloud, order, stages, ctx, None if truth is None else np.asarray(truth)[order],
                   default_class, progress, target_class)
     def back(ordered):
         out = np.empty_like(ordered)
@@ -82,12 +84,21 @@ def run(cloud: Cloud, stages, *, ctx: StageContext | None = None, truth: np.ndar
     return result
 
 
-def _run(cloud, stages, ctx, truth, default_class, progress, target_class) -> PipelineResult:
+def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class) -> PipelineResult:
+    """The stages over ``cloud`` taken in ``order`` (canonical positions; None: as it is). Every
+    index here is a canonical position; a stage's points are gathered from ``cloud`` through
+    ``order`` directly, so the canonical copy of the whole cloud lives only while the stages take
+    every point (at 16 M points its 370 MB had stayed through the pipeline's peak)."""
     ctx = ctx or StageContext()
+    whole = cloud if order is None else cloud.subset(order)
+
+    def points(index):
+        return cloud.subset(index if order is None else order[index])
+
     if ESTIMATES not in ctx.facts:
         # measured on the whole input before any stage (a tiled run hands in the survey's)
         from roadx_ti.estimates import measure
-        ctx.facts[ESTIMATES] = measure(cloud)
+        ctx.facts[ESTIMATES] = measure(whole)
     n = cloud.n
     classification = np.full(n, default_class, np.uint8)
     decided_by = np.zeros(n, np.uint8)
@@ -98,7 +109,9 @@ def _run(cloud, stages, ctx, truth, default_class, progress, target_class) -> Pi
     rows = []
     t_start = time.perf_counter()
     for number, stage in enumerate(stages, start=1):
-        sub = cloud if len(working) == n else cloud.subset(working)
+        if len(working) < n:
+            whole = None
+        sub = whole if len(working) == n else points(working)
         t0 = time.perf_counter()
         if len(working):
             result = stage.run(sub, ctx)
@@ -148,22 +161,24 @@ def _run(cloud, stages, ctx, truth, default_class, progress, target_class) -> Pi
                  row["points_in"], row["points_out"], seconds)
         if progress is not None:
             progress(stage.name, number, len(stages))
+    del whole
     if not processed.all():
-        _transfer_labels(cloud, processed, classification, decided_by, segment_id)
+        _transfer_labels(lambda index: cloud.xyz[index if order is None else order[index]],
+                         processed, classification, decided_by, segment_id)
     return PipelineResult(classification, decided_by, segment_id, processed, rows,
                           time.perf_counter() - t_start, dict(ctx.facts[ESTIMATES]), extra_dims)
 
 
-def _transfer_labels(cloud, processed, classification, decided_by, segment_id):
+def _transfer_labels(xyz_of, processed, classification, decided_by, segment_id):
     """Points skipped by downsampling take the result of their nearest processed point (ties to
-    the lower index)."""
+    the lower index). ``xyz_of(index)``: the coordinates of those positions."""
     from roadx_ti.kernels.neighbors import nearest
 
     source = np.flatnonzero(processed)
     target = np.flatnonzero(~processed)
     if len(source) == 0:
         return
-    donor = source[nearest(cloud.xyz[source], cloud.xyz[target])[0]]
+    donor = source[nearest(xyz_of(source), xyz_of(target))[0]]
     classification[target] = classification[donor]
     decided_by[target] = decided_by[donor]
     segment_id[target] = segment_id[donor]
