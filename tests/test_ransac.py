@@ -228,3 +228,46 @@ def test_a_steep_street_stays_ground_with_a_sloped_reference():
     assert not before.keep[~on_roof].all()                       # the plain reference took street
     after = RansacPlanes({**options, "ground_slope": 0.15}).run(cloud, StageContext(seed=0))
     assert after.keep[~on_roof].all() and not after.keep[on_roof].any()
+
+
+def test_a_street_on_a_hillside_stays_ground_by_its_outline_and_a_roof_still_goes():
+    """A street cut into a hillside: a bank falls 6 m within 9 m below it and a retaining wall
+    rises 2.8 m above it, so the lowest point of the 3 x 3 reference cells lies down the bank and
+    the street's plane stands ~5 m over it, removed as XY (roof) even with the sloped reference.
+    A roof's outline drops a storey all round; the street's goes on at grade or up the wall along
+    its uphill side: with at_grade_share 0.5 the street stays and a flat roof 6 m up still goes,
+    its rooftop unit (a hole in its plane) no outline."""
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.planes import RansacPlanes
+
+    rng = np.random.default_rng(21)
+    n = 120_000
+    xy = rng.random((n, 2)) * [100.0, 60.0]
+    y = xy[:, 1]
+    # the bank below (y < 20) falls 6 m over 9 m, the street (20-27) is level across, the wall
+    # at 27 rises 2.8 m, then the slope climbs at 30 %
+    z = np.where(y < 11, -6.0 + 0.05 * (y - 11), np.where(y < 20, -6.0 + (y - 11) * 6.0 / 9.0, 0.0))
+    z = np.where(y >= 27, 2.8 + 0.3 * (y - 27), z)
+    z = z + rng.normal(0, 0.02, n)
+    street = (y >= 20) & (y < 27)
+    ground = np.column_stack([xy, z])
+    # a flat-roofed building of 14 x 14 m on the bank's foot, 6 m up, with a rooftop unit
+    inside = (xy[:, 0] > 70) & (xy[:, 0] < 84) & (y > 0) & (y < 9)
+    ground = ground[~inside]
+    street = street[~inside]
+    roof = np.column_stack([70 + rng.random(12_000) * 14, rng.random(12_000) * 9, np.full(12_000, -6.0 + 6.0)])
+    unit = (np.abs(roof[:, 0] - 77) < 1.5) & (np.abs(roof[:, 1] - 4.5) < 1.5)
+    roof[unit, 2] += 1.2
+    roof[:, 2] += rng.normal(0, 0.02, len(roof))
+    xyz = np.concatenate([ground, roof]).astype(np.float32)
+    on_roof = np.r_[np.zeros(len(ground), bool), ~unit]
+    on_street = np.r_[street, np.zeros(len(roof), bool)]
+    options = {"distance_threshold": 0.1, "min_inliers": 500, "max_planes": 4, "dh_max": 2.5,
+               "ground_cell": 10.0, "xy_removal": "part", "ground_slope": 0.15}
+    cloud = Cloud(xyz=xyz, origin=np.zeros(3))
+    before = RansacPlanes(options).run(cloud, StageContext(seed=0))
+    assert before.keep[on_street].mean() < 0.5                   # the street went as a roof
+    after = RansacPlanes({**options, "at_grade_share": 0.5}).run(cloud, StageContext(seed=0))
+    assert after.keep[on_street].mean() > 0.98
+    assert after.keep[on_roof].mean() < 0.02

@@ -3,7 +3,11 @@ not read the project's generator): UAV-photogrammetry-like point clouds (the sur
 the sky, some wall and side points) of layouts and looks the project's generator lacks: a
 roundabout, a boulevard with a planted median, a curved country lane without kerbs, an old-town
 alley with flush stone paving, a parking lot, a 7 % street, a red curve with cross-fall, a tree
-avenue. Truth classes: 11 road surface (drivable, with parking lanes / lots and markings),
+avenue; and (a second session) kerbs hidden by cars parked bumper to bumper,
+an urban canyon in deep shadow, sidewalks darker than the asphalt beside a raised cycle track,
+20 points/m2 with 7 cm noise, doubled flight strips with an exposure seam and holes, a wide
+junction with kerbed islands, speed bumps and a raised table, a hillside road with a retaining
+wall above and a steep bank below. Truth classes: 11 road surface (drivable, with parking lanes / lots and markings),
 2 other ground, 6 building, 5 vegetation, 1 other (cars, poles, pedestrians, umbrellas).
 
     python benchmarks/heldout_streets/scenes.py NAME [NAME ...] | all
@@ -1210,8 +1214,640 @@ SCENES = {f().name if False else k: f for k, f in {
 }.items()}
 
 
+# ============================================================================= scenes2 additions
+# Eight more scenes (written for /tmp/indep2, not derived from roadx_ti.synthetic): parked cars
+# hiding kerbs, urban canyon in deep shadow, dark sidewalks + raised cycle track, sparse noisy
+# survey, photogrammetric artefacts, wide multi-lane junction, speed bumps / raised table /
+# lowered kerbs, hillside road with retaining wall.  Scene2 adds an optional post-processing hook
+# (artefacts applied to the finished cloud); the original Scene class is unchanged.
+class Scene2(Scene):
+    post = None
+
+    def generate(self):
+        super().generate()
+        if self.post is not None:
+            self.post(self)
+        return self
+
+    def subset(self, keep):
+        for a in ("x", "y", "z", "cls", "rgb", "sh", "part", "kerbb"):
+            setattr(self, a, getattr(self, a)[keep])
+
+    def append(self, idx, dx=0.0, dy=0.0, dz=0.0, kc=1.0):
+        self.x = np.concatenate([self.x, self.x[idx] + dx])
+        self.y = np.concatenate([self.y, self.y[idx] + dy])
+        self.z = np.concatenate([self.z, self.z[idx] + dz + self.rng.normal(0, self.hnoise, len(idx))])
+        self.cls = np.concatenate([self.cls, self.cls[idx]])
+        self.rgb = np.concatenate([self.rgb, np.clip(self.rgb[idx] * kc + self.rng.normal(0, self.cnoise, (len(idx), 3)), 0, 1)])
+        self.sh = np.concatenate([self.sh, self.sh[idx]])
+        self.part = np.concatenate([self.part, self.part[idx]])
+        self.kerbb = np.concatenate([self.kerbb, self.kerbb[idx]])
+
+
+class Wall:
+    """Vertical face (retaining wall) along a polyline between z_lo(x, y) and z_hi(x, y): side points only."""
+
+    def __init__(self, pts, zlo, zhi, cls=OTHER, col=(0.62, 0.6, 0.56), frac=0.3):
+        self.pts, self.zlo, self.zhi, self.cls, self.col, self.frac = np.asarray(pts, float), zlo, zhi, cls, np.asarray(col), frac
+        self.bbox = (-1e6, -1e6 + 1, -1e6, -1e6 + 1)      # no top surface
+
+    def prepare(self, sc):
+        pass
+
+    def top(self, x, y):
+        return np.full(len(x), np.nan), self.cls, np.zeros((len(x), 3))
+
+    def extra(self, sc):
+        rng = sc.rng
+        seg = np.diff(self.pts, axis=0)
+        L = np.hypot(seg[:, 0], seg[:, 1])
+        cum = np.concatenate([[0], np.cumsum(L)])
+        hmean = float(np.mean(self.zhi(self.pts[:, 0], self.pts[:, 1]) - self.zlo(self.pts[:, 0], self.pts[:, 1])))
+        n = int(cum[-1] * hmean * sc.density * DSCALE * self.frac)
+        t = rng.uniform(0, cum[-1], n)
+        x = np.interp(t, cum, self.pts[:, 0]) + rng.normal(0, 0.02, n)
+        y = np.interp(t, cum, self.pts[:, 1]) + rng.normal(0, 0.02, n)
+        lo, hi = self.zlo(x, y), self.zhi(x, y)
+        z = lo + rng.uniform(0, 1, n) * (hi - lo)
+        blk = cellhash(np.floor(t / 0.6), np.floor((z - lo) / 0.3), 21)      # stone blocks
+        rgb = self.col * (0.8 + 0.3 * blk)[:, None] * (1 + rng.normal(0, 0.04, (n, 1)))
+        return x, y, z, self.cls, rgb
+
+
+def smear_around_cars(sc, cars, band=0.3, drop=0.5):
+    """Post hook part: photogrammetric smear next to vehicle bodies (occluded strip beside a car):
+    half of the ground points within `band` of a car outline vanish, the rest are lifted towards the body."""
+    rng = sc.rng
+    keep = np.ones(len(sc.x), bool)
+    gnd = sc.part >= 0
+    for c in cars:
+        u, v = rot(sc.x, sc.y, c.cx, c.cy, c.ang)
+        du = np.abs(u) - c.L / 2
+        dv = np.abs(v) - c.Wd / 2
+        d = np.maximum(du, dv)
+        m = gnd & (d > 0) & (d < band)
+        if not m.any():
+            continue
+        r = rng.uniform(0, 1, len(sc.x))
+        keep &= ~(m & (r < drop))
+        lift = m & (r >= drop)
+        sc.z[lift] += (1 - d[lift] / band) * c.h * 0.7 * rng.uniform(0, 1, lift.sum()) ** 3
+    sc.subset(keep)
+
+
+def scene_parked(smear=True):
+    """1. Residential street, parking lanes on both sides filled bumper to bumper: kerb visible only in a few gaps."""
+    sc = Scene2("parked_bumper2bumper" + ("" if smear else "_nosmear"), 901, 140, 56, 130, 0.025, 0.02, "full16", 150, 45, 25, (512040.0, 5402110.0), 180.0)
+    rng, M = sc.rng, sc.M
+    cy = 28.0
+    pl = Polyline([(-5, cy), (145, cy)])
+    sc.terrain = lambda x, y: 0.004 * x
+    asph = M.asphalt((0.31, 0.31, 0.32), wear=0.07)
+    walk = M.concrete_slabs((0.62, 0.61, 0.58), a=1.2)
+    kerb = M.solid((0.72, 0.71, 0.69))
+    half = 4.6     # 2 m parking lane + 2.6 m lane on each side... (lanes 2 x 2.6 ~ 5.2, parking 2 x 2.0)
+    sc.layer(lambda x, y: np.full(len(x), -1.0), GROUND, M.grass((0.29, 0.42, 0.17)), dz=0.06, name="front lawns")
+    sc.layer(pl.sdf_band(half + 2.5), GROUND, walk, dz=0.0, name="sidewalk")
+    for x0 in (18.0, 61.0, 103.0):
+        for sgn in (-1, 1):
+            sc.layer(sdf_box(x0 + sgn * 6, cy + sgn * (half + 2.5 + 3), 1.5, 3.0), GROUND, M.concrete_slabs((0.55, 0.54, 0.52), a=2.0),
+                     dz=0.02, name="garden driveway")
+    sc.layer(pl.sdf_band(half), ROAD, asph, dz=lambda x, y: -0.12 + 0.03 * (half - np.abs(pl.local(x, y)[0])) / half,
+             rim=kerb, rim_out=True, name="street incl. parking lanes")
+    sc.layer(markings_dashed(pl, 0.0, w=0.12, dash=2, gap=6), ROAD, M.solid(WHITE))
+    sc.layer(manholes(sc, [(25, cy + 0.7), (77, cy - 1.1), (120, cy + 1.0)]), ROAD, M.solid((0.2, 0.2, 0.21), 0.2))
+    sc.layer(patches(sc, rng, pl, half, 4, (1, 3)), ROAD, M.asphalt((0.24, 0.24, 0.25)))
+    cars = []
+    gaps = {1: [(40.0, 46.5), (96.0, 101.0)], -1: [(70.0, 76.0)]}
+    for sgn in (-1, 1):
+        s = rng.uniform(-3, 0)
+        while s < 142:
+            g = [b for a, b in gaps[sgn] if a <= s < b]
+            if g:
+                s = g[0]
+                continue
+            van = rng.uniform() < 0.12
+            L = rng.uniform(5.0, 5.6) if van else rng.uniform(3.9, 4.9)
+            Wd = rng.uniform(1.95, 2.05) if van else rng.uniform(1.75, 1.88)
+            lat = sgn * (half - Wd / 2 - rng.uniform(0.06, 0.18))
+            c = Car(s + L / 2, cy + lat, rng.uniform(-0.015, 0.015), L=L, Wd=Wd, van=van,
+                    h=rng.uniform(2.0, 2.5) if van else rng.uniform(1.4, 1.65))
+            sc.add(c)
+            cars.append(c)
+            s += L + rng.uniform(0.3, 0.9)
+    for sv in (30.0, 88.0):
+        c = Car(sv, cy - 1.3, 0.0)
+        sc.add(c)
+    for sgn in (-1, 1):
+        for x in np.arange(8 + 5 * (sgn > 0), 140, 19.0):
+            sc.add(Tree(x + rng.uniform(-1, 1), cy + sgn * (half + 1.9), rng.uniform(2.5, 4.0), rng.uniform(7, 10)))
+        for x in np.arange(0, 140, 14.0):
+            bx = x + 7 + rng.uniform(-1, 1)
+            D = rng.uniform(9, 11)
+            sc.add(Building(bx, cy + sgn * (half + 2.5 + 6.5 + D / 2), rng.uniform(9, 11.5), D, 0.0, rng.uniform(6, 8), roof="gable",
+                            rise=rng.uniform(2.5, 4), roof_col=tuple(np.array([0.5, 0.27, 0.2]) * rng.uniform(0.7, 1.2)), ridge_along=rng.uniform() < 0.5))
+    for x in np.arange(12, 140, 30.0):
+        sc.add(Disc(x, cy + half + 0.5, 0.12, 7.0))
+    for _ in range(5):
+        sc.add(Disc(rng.uniform(0, 140), cy + rng.choice([-1, 1]) * rng.uniform(5.2, 6.8), 0.25, 1.7, col=tuple(rng.uniform(0.1, 0.8, 3))))
+    if smear:
+        sc.post = lambda s: smear_around_cars(s, cars)
+    return sc
+
+
+def scene_canyon():
+    """2. Urban canyon, 4-6 storeys both sides, low sun: most of the street in deep bluish shadow."""
+    sc = Scene2("urban_canyon_shadow", 902, 130, 64, 120, 0.02, 0.018, "x257", -78, 17, -60, (391220.0, 5819470.0), 36.0,
+                shadow=(0.24, 0.28, 0.42))
+    rng, M = sc.rng, sc.M
+    cy = 32.0
+    pl = Polyline([(-5, cy), (135, cy)])
+    cs_ = Polyline([(70, cy), (70, 70)])
+    sc.terrain = lambda x, y: 0.006 * x
+    asph = M.asphalt((0.34, 0.34, 0.35), wear=0.06)
+    walk = M.concrete_slabs((0.63, 0.62, 0.6), a=0.8)
+    kerb = M.solid((0.7, 0.7, 0.69))
+    half, sw = 5.0, 2.6
+    sc.layer(lambda x, y: np.full(len(x), -1.0), GROUND, M.concrete_slabs((0.55, 0.54, 0.52), a=2.0), dz=0.0, name="courtyards")
+    sc.layer(pl.sdf_band(half + sw), GROUND, walk, dz=0.0, name="sidewalk")
+    sc.layer(cs_.sdf_band(3.5 + 2.2), GROUND, walk, dz=0.0, name="sidewalk (cross street)")
+    sc.layer(pl.sdf_band(half), ROAD, asph, dz=lambda x, y: -0.12 + 0.025 * (half - np.abs(pl.local(x, y)[0])) / half, rim=kerb, rim_out=True,
+             name="canyon street")
+    sc.layer(cs_.sdf_band(3.5), ROAD, asph, dz=-0.12, rim=kerb, rim_out=True, name="cross street")
+    sc.layer(markings_dashed(pl, 0.0, dash=3, gap=5), ROAD, M.solid(WHITE))
+    sc.layer(zebra(pl, 58, half, depth=4), ROAD, M.solid(WHITE))
+    sc.layer(manholes(sc, [(22, cy + 1.2), (95, cy - 0.8), (70, 50)]), ROAD, M.solid((0.2, 0.2, 0.2), 0.2))
+    sc.layer(patches(sc, rng, pl, half, 4, (1, 4)), ROAD, M.asphalt((0.27, 0.27, 0.28)))
+    for sgn in (-1, 1):
+        x = -3.0
+        while x < 133:
+            L = rng.uniform(12, 24)
+            if sgn > 0 and x < 76 and x + L > 64:
+                x = 76.0
+                continue
+            if sgn < 0 and x < 50 and x + L > 38:      # a gap on the sunny side: one patch of sun on the street
+                x = 50.0
+                continue
+            D = rng.uniform(13, 17)
+            storeys = int(rng.integers(4, 7))
+            h = storeys * 3.2 + rng.uniform(0.5, 1.5)
+            sc.add(Building(x + L / 2, cy + sgn * (half + sw + D / 2 + 0.05), L - 0.2, D, 0.0, h,
+                            roof="flat" if rng.uniform() < 0.75 else "gable", rise=3.5, parapet=0.7, units=int(rng.integers(0, 4)),
+                            roof_col=tuple(rng.uniform(0.35, 0.6, 3)), wall_col=tuple(rng.uniform(0.55, 0.9, 3)), ridge_along=True, wall_frac=0.08))
+            x += L
+    for s in np.arange(4, 128, 6.0):
+        if rng.uniform() < 0.6 and abs(s - 60) > 5 and abs(s - 70) > 7:
+            sc.add(Car(s, cy - half + 1.1, 0.0))
+    for _ in range(4):
+        sc.add(Car(rng.uniform(5, 125), cy + 1.6, np.pi, van=rng.uniform() < 0.3, h=rng.uniform(1.45, 2.3)))
+    for x in np.arange(8, 130, 20.0):
+        sc.add(Disc(x, cy + half + 0.45, 0.12, 6.5))
+        sc.add(Disc(x + 10, cy - half - 0.45, 0.12, 6.5))
+    for _ in range(14):
+        sc.add(Disc(rng.uniform(0, 130), cy + rng.choice([-1, 1]) * rng.uniform(5.6, 7.3), 0.25, 1.7, col=tuple(rng.uniform(0.1, 0.8, 3))))
+    for x in np.arange(15, 130, 25.0):
+        sc.add(Tree(x, cy + half + 1.3, 1.8, 6.0))
+    return sc
+
+
+def scene_darkwalk():
+    """3. Dark grey paver sidewalks next to light faded asphalt (10 cm kerbs); a light raised cycle track (5 cm) on one side."""
+    sc = Scene2("dark_sidewalk_cycletrack", 903, 120, 52, 150, 0.02, 0.02, "x256", 220, 48, 100, (455010.0, 5127730.0), 260.0)
+    rng, M = sc.rng, sc.M
+    cy = 26.0
+    pl = Polyline([(-5, cy), (125, cy)])
+    side = Polyline([(64, cy), (64, -5)])
+    sc.terrain = lambda x, y: -0.005 * x + 0.002 * y
+    asph = M.asphalt((0.56, 0.55, 0.53), wear=0.08, grain=0.05)      # light, faded
+    dark = M.pavers((0.27, 0.27, 0.28), a=0.3, b=0.15, var=0.18, joint=0.005, jdark=0.75)
+    track = M.asphalt((0.70, 0.62, 0.54), wear=0.05)                   # light beige cycle track
+    kerb = M.solid((0.48, 0.48, 0.49))
+    half = 3.4
+    sc.layer(lambda x, y: np.full(len(x), -1.0), GROUND, M.grass((0.3, 0.42, 0.18)), dz=0.05, name="lawns")
+    # north (lat > 0): road | 5 cm kerb | cycle track 1.9 m | 5 cm step | dark sidewalk 2.6 m
+    # south: road | 10 cm kerb | dark sidewalk 3 m; side street to the south with dark sidewalks
+    sc.layer(lambda x, y: np.where(pl.local(x, y)[0] > 0, pl.local(x, y)[0] - (half + 1.9 + 2.6), -pl.local(x, y)[0] - (half + 3.0)),
+             GROUND, dark, dz=0.0, name="dark paver sidewalk")
+    sc.layer(side.sdf_band(3.0 + 2.6), GROUND, dark, dz=0.0, name="dark sidewalk (side street)")
+    sc.layer(lambda x, y: np.where(pl.local(x, y)[0] > 0, np.abs(pl.local(x, y)[0] - (half + 0.95)) - 0.95, 1.0), GROUND, track,
+             dz=-0.05, rim=M.solid((0.6, 0.6, 0.6)), rim_w=0.12, name="raised cycle track")
+    sc.layer(side.sdf_band(3.0), ROAD, asph, dz=-0.10, rim=kerb, rim_out=True, name="side street")
+    sc.layer(pl.sdf_band(half), ROAD, asph, dz=lambda x, y: -0.10 + 0.02 * (half - np.abs(pl.local(x, y)[0])) / half,
+             rim=kerb, rim_out=True, name="light asphalt street")
+    sc.layer(markings_dashed(pl, 0.0, dash=3, gap=6), ROAD, M.solid(WHITE))
+    sc.layer(markings_solid(side, 0.0, s0=3, s1=14), ROAD, M.solid(WHITE))
+    # cycle symbols / edge line on the track (painted white, still class 2)
+    sc.layer(lambda x, y: np.where((pl.local(x, y)[0] > half) & (np.abs(pl.local(x, y)[1] % 25 - 12) < 0.6) &
+                                   (np.abs(pl.local(x, y)[0] - (half + 0.95)) < 0.4), -1.0, 1.0), GROUND, M.solid(WHITE), name="track symbol")
+    sc.layer(manholes(sc, [(20, cy + 1.0), (90, cy - 1.3)]), ROAD, M.solid((0.3, 0.3, 0.3), 0.2))
+    sc.layer(patches(sc, rng, pl, half, 5, (1, 3)), ROAD, M.asphalt((0.40, 0.40, 0.40)))
+    for x in np.arange(0, 120, 15.0):
+        sc.add(Building(x + 7.5 + rng.uniform(-1, 1), cy + half + 4.5 + 4 + 6, rng.uniform(11, 14), rng.uniform(9, 12), 0.0, rng.uniform(9, 15),
+                        roof="flat", parapet=0.5, units=2, roof_col=tuple(rng.uniform(0.35, 0.65, 3))))
+    for x in np.arange(0, 120, 16.0):
+        if abs(x + 8 - 64) > 10:
+            sc.add(Building(x + 8 + rng.uniform(-1, 1), cy - half - 3 - 3 - 5, rng.uniform(10, 13), rng.uniform(8, 10), 0.0, rng.uniform(6, 9),
+                            roof="gable", rise=3, roof_col=tuple(np.array([0.5, 0.3, 0.25]) * rng.uniform(0.8, 1.2))))
+    for x in np.arange(6, 120, 13.0):
+        sc.add(Tree(x, cy - half - 2.3, rng.uniform(2.2, 3.5), rng.uniform(6, 9)))
+    for _ in range(5):
+        sc.add(Car(rng.uniform(5, 115), cy + rng.choice([-1.6, 1.6]), 0.0))
+    for _ in range(4):
+        sc.add(Disc(rng.uniform(0, 120), cy + half + 0.95, 0.3, 1.6, col=tuple(rng.uniform(0.1, 0.8, 3))))  # cyclists
+    for _ in range(8):
+        sc.add(Disc(rng.uniform(0, 120), cy + rng.choice([-1, 1]) * rng.uniform(5.8, 7.6), 0.25, 1.7, col=tuple(rng.uniform(0.1, 0.8, 3))))
+    return sc
+
+
+def scene_sparse():
+    """4. Low density and high noise: 20 points/m2, height noise 7 cm, kerbs 11 cm, suburban T and curve."""
+    sc = Scene2("sparse_noisy_20ppm", 904, 230, 120, 20, 0.07, 0.03, "x257", 60, 40, 145, (602110.0, 5500870.0), 127.0)
+    rng, M = sc.rng, sc.M
+    tn = Noise(rng, 230, 120, 40)
+    sc.terrain = lambda x, y: 0.01 * x + 0.4 * tn(x, y)
+    main = Polyline(bezier((-10, 40), (70, 30), (150, 70), (240, 60)))
+    side = Polyline([(110, 48), (105, 125)])
+    asph = M.asphalt((0.33, 0.33, 0.34), wear=0.08)
+    walk = M.concrete_slabs((0.6, 0.59, 0.57), a=1.5)
+    kerb = M.solid((0.7, 0.7, 0.68))
+    sc.layer(lambda x, y: np.full(len(x), -1.0), GROUND, M.grass((0.3, 0.43, 0.18), dry=0.1), dz=0.03)
+    sc.layer(main.sdf_band(3.5 + 2.0), GROUND, walk, dz=0.0, name="sidewalk")
+    sc.layer(side.sdf_band(3.0 + 1.8), GROUND, walk, dz=0.0, name="sidewalk (side)")
+    sc.layer(side.sdf_band(3.0), ROAD, asph, dz=-0.11, rim=kerb, rim_out=True, name="side road")
+    sc.layer(main.sdf_band(3.5), ROAD, asph, dz=lambda x, y: -0.11 + 0.02 * (3.5 - np.abs(main.local(x, y)[0])) / 3.5,
+             rim=kerb, rim_out=True, name="main road")
+    sc.layer(markings_dashed(main, 0.0, dash=3, gap=6), ROAD, M.solid(WHITE))
+    sc.layer(patches(sc, rng, main, 3.5, 6, (1, 4)), ROAD, M.asphalt((0.26, 0.26, 0.27)))
+    for s in np.arange(5, main.length, 16.0):
+        for sgn in (-1, 1):
+            px, py, an = point_on(main, s + rng.uniform(-2, 2), sgn * rng.uniform(13, 16))
+            if abs(px - 108) < 12 and sgn > 0:
+                continue
+            sc.add(Building(px, py, rng.uniform(9, 13), rng.uniform(8, 11), an + rng.uniform(-0.1, 0.1), rng.uniform(5, 8), roof="gable",
+                            rise=rng.uniform(2.5, 4), roof_col=tuple(rng.uniform(0.3, 0.6, 3)), ridge_along=rng.uniform() < 0.5))
+            if rng.uniform() < 0.5:
+                px, py, an = point_on(main, s + 8, sgn * rng.uniform(6.5, 8))
+                sc.add(Tree(px, py, rng.uniform(3, 5), rng.uniform(8, 13)))
+    for s in np.arange(12, side.length, 16.0):
+        for sgn in (-1, 1):
+            px, py, an = point_on(side, s, sgn * rng.uniform(11, 13))
+            sc.add(Building(px, py, rng.uniform(9, 12), rng.uniform(8, 10), an, rng.uniform(5, 7), roof="gable", rise=3,
+                            roof_col=tuple(rng.uniform(0.3, 0.6, 3))))
+    for _ in range(8):
+        px, py, an = point_on(main, rng.uniform(5, main.length - 5), rng.choice([-1.8, 1.8]))
+        sc.add(Car(px, py, an))
+    for _ in range(3):
+        px, py, an = point_on(side, rng.uniform(10, 70), 1.9)
+        sc.add(Car(px, py, an))
+    return sc
+
+
+def scene_artefacts():
+    """5. Photogrammetric artefacts: misaligned overlapping strips (doubled surface), exposure seam, holes."""
+    sc = Scene2("photogrammetry_artefacts", 905, 120, 70, 110, 0.025, 0.02, "x257", 200, 45, 200, (367880.0, 5702340.0), 72.0)
+    rng, M = sc.rng, sc.M
+    cy = 35.0
+    pl = Polyline([(-5, cy), (125, cy)])
+    sc.terrain = lambda x, y: -0.004 * x + 0.003 * y
+    asph = M.asphalt((0.33, 0.33, 0.34), wear=0.07)
+    park = M.pavers((0.42, 0.41, 0.40), a=0.2, b=0.1, var=0.2)
+    walk = M.concrete_slabs((0.64, 0.63, 0.6), a=1.0)
+    kerb = M.solid((0.72, 0.71, 0.69))
+    half = 5.5
+    sc.layer(lambda x, y: np.full(len(x), -1.0), GROUND, M.grass((0.3, 0.42, 0.17)), dz=0.05, name="lawns")
+    sc.layer(pl.sdf_band(half + 3.0), GROUND, walk, dz=0.0, name="sidewalk")
+    sc.layer(pl.sdf_band(half), ROAD, asph, dz=lambda x, y: -0.12 + 0.025 * (half - np.abs(pl.local(x, y)[0])) / half,
+             rim=kerb, rim_out=True, name="street")
+    sc.layer(lambda x, y: np.where(np.abs(pl.local(x, y)[0]) > half - 2.0, np.abs(pl.local(x, y)[0]) - half, 1.0), ROAD, park,
+             name="paved parking strips")
+    sc.layer(markings_dashed(pl, 0.0, dash=3, gap=6), ROAD, M.solid(WHITE))
+    sc.layer(markings_solid(pl, 3.5), ROAD, M.solid(WHITE))
+    sc.layer(markings_solid(pl, -3.5), ROAD, M.solid(WHITE))
+    sc.layer(manholes(sc, [(18, cy + 1.0), (66, cy - 1.5), (101, cy + 0.5)]), ROAD, M.solid((0.2, 0.2, 0.2), 0.2))
+    trees, metal = [], []
+    for sgn in (-1, 1):
+        for x in np.arange(5 + 4 * (sgn > 0), 120, 11.0):
+            t = Tree(x + rng.uniform(-1, 1), cy + sgn * (half + 1.2), rng.uniform(3.0, 4.5), rng.uniform(8, 12))
+            sc.add(t)
+            trees.append(t)
+        x = 0.0
+        while x < 118:
+            L = rng.uniform(12, 20)
+            D = rng.uniform(10, 14)
+            shiny = rng.uniform() < 0.35
+            b = Building(x + L / 2, cy + sgn * (half + 3.0 + 4 + D / 2), L - 1.5, D, 0.0, rng.uniform(6, 12), roof="flat" if shiny else "gable",
+                         rise=3, parapet=0.3, roof_col=(0.78, 0.8, 0.82) if shiny else tuple(rng.uniform(0.3, 0.6, 3)), ridge_along=True)
+            sc.add(b)
+            if shiny:
+                metal.append(b)
+            x += L
+    for s in np.arange(3, 118, 5.5):
+        for sgn in (-1, 1):
+            if rng.uniform() < 0.5:
+                sc.add(Car(s + 2.5, cy + sgn * (half - 1.0), 0.0))
+    for _ in range(3):
+        sc.add(Car(rng.uniform(5, 115), cy + rng.choice([-1.7, 1.7]), 0.0))
+
+    def post(s):
+        r = s.rng
+        # holes: no points in the crowns (and the ground just around) of 5 trees, on 3 specular roofs
+        keep = np.ones(len(s.x), bool)
+        for t in [trees[i] for i in r.choice(len(trees), 5, replace=False)]:
+            keep &= np.hypot(s.x - t.cx, s.y - t.cy) > t.r * 1.05
+        for b in metal[:3]:
+            u, v = rot(s.x, s.y, b.cx, b.cy, b.ang)
+            keep &= ~((np.abs(u) < b.L / 2 - 0.3) & (np.abs(v) < b.Wd / 2 - 0.3) & (s.z > b.base + b.h - 0.5))
+        s.subset(keep)
+        # second flight strip over the eastern half: 60 % of the points again, 5 cm higher, 7/-5 cm in plan, other exposure
+        s.strip = (s.x > 60).copy()
+        idx = np.flatnonzero(s.strip & (r.uniform(0, 1, len(s.x)) < 0.6))
+        s.append(idx, dx=0.07, dy=-0.05, dz=0.05, kc=0.96)
+        # exposure seam: +15 % on one side of an oblique straight line
+        side_ = s.y > 0.45 * s.x + 12
+        s.rgb[side_] = np.clip(s.rgb[side_] * 1.15, 0, 1)
+    sc.post = post
+    return sc
+
+
+def scene_junction():
+    """6. Wide 4-arm junction, 3 approach + 2 exit lanes per arm, kerbed divider and corner islands, zebras, stop lines."""
+    sc = Scene2("wide_junction_islands", 906, 160, 160, 38, 0.03, 0.02, "x256", 135, 50, 12, (689030.0, 5335420.0), 281.0)
+    rng, M = sc.rng, sc.M
+    C = np.array([80.0, 80.0])
+    sc.terrain = lambda x, y: 0.003 * x - 0.002 * y
+    asph = M.asphalt((0.30, 0.30, 0.31), wear=0.06)
+    walk = M.concrete_slabs((0.62, 0.61, 0.58), a=1.5, ang=0.0)
+    kerb = M.solid((0.73, 0.72, 0.7))
+    isl = M.pavers((0.58, 0.48, 0.42), a=0.2, b=0.1, var=0.25)
+    vin, vout = 9.6, 6.5       # inbound (3 x 3.2) right of the centre, outbound (2 x 3.25) left; 2.5 m divider
+    vmed = 1.25
+    angs = [0.0, np.pi / 2, np.pi, 3 * np.pi / 2]
+    # arm frames: u outwards, v to the left of the outward direction; inbound lanes (towards C) at v > 0
+    def arm_band(a):
+        def f(x, y):
+            u, v = rot(x, y, C[0], C[1], a)
+            return np.maximum(-u, np.maximum(v - (vmed + vin), -(v + vmed + vout)))
+        return f
+    def road_sdf():
+        fs = [arm_band(a) for a in angs]
+        fs.append(sdf_box(C[0], C[1], vmed + vin, vmed + vin))
+        # corner fillets (R 9 m; 20 m with a slip lane at two corners)
+        for k, a in enumerate(angs):
+            a2 = a + np.pi / 2
+            R = 28.0 if k in (0, 2) else 9.0
+            # corner between arm a (its +v side: inbound edge at v = vmed+vin) and arm a2 (its -v side: outbound edge)
+            e1 = vmed + vin          # arm a edge offset (in a2's direction)
+            e2 = vmed + vout         # arm a2 edge offset (in a's direction)
+            ca, sa = np.cos(a), np.sin(a)
+            c2, s2 = np.cos(a2), np.sin(a2)
+            P = C + e2 * np.array([ca, sa]) + e1 * np.array([c2, s2])
+            Q = P + R * np.array([ca, sa]) + R * np.array([c2, s2])
+            def fil(x, y, P=P, Q=Q, R=R, a=a):
+                u, v = rot(x, y, P[0], P[1], a)
+                box = np.maximum(np.maximum(-u, u - R), np.maximum(-v, v - R))
+                return np.maximum(box, -(np.hypot(x - Q[0], y - Q[1]) - R))
+            fs.append(fil)
+        return sdf_union(*fs), fs
+    rsdf, _ = road_sdf()
+    sc.layer(lambda x, y: np.full(len(x), -1.0), GROUND, M.grass((0.3, 0.43, 0.18)), dz=0.08, name="lawns")
+    sc.layer(lambda x, y: rsdf(x, y) - 4.0, GROUND, walk, dz=0.0, name="sidewalk")
+    sc.layer(rsdf, ROAD, asph, dz=lambda x, y: -0.13 + 0.015 * np.clip(1 - np.abs(np.hypot(x - C[0], y - C[1])) / 80, 0, 1), rim=kerb,
+             rim_out=True, name="junction carriageway")
+    # islands: divider on each arm (u 28..60, nose rounded), triangles at the slip-lane corners
+    for k, a in enumerate(angs):
+        def div(x, y, a=a):
+            u, v = rot(x, y, C[0], C[1], a)
+            w = vmed * smooth01((u - 27.5) / 4.0) + 0.25
+            return np.maximum(np.abs(v) - w, np.maximum(27.5 - u, u - 62))
+        sc.layer(div, GROUND, isl, dz=0.0, rim=kerb, rim_w=0.15, name="divider island")
+        if k in (0, 2):
+            a2 = a + np.pi / 2
+            e1, e2 = vmed + vin, vmed + vout
+            d1, d2 = np.array([np.cos(a), np.sin(a)]), np.array([np.cos(a2), np.sin(a2)])
+            P = C + e2 * d1 + e1 * d2
+            def tri(x, y, P=P, d1=d1, d2=d2):
+                px, py = x - P[0], y - P[1]
+                a_ = px * d1[0] + py * d1[1]
+                b_ = px * d2[0] + py * d2[1]
+                # triangle a>=1.5, b>=1.5, a+b <= 10.5 (then a ~4.2 m slip lane to the outer kerb, R 28 m)
+                return np.maximum(np.maximum(1.5 - a_, 1.5 - b_), (a_ + b_ - 10.5) / np.sqrt(2))
+            sc.layer(tri, GROUND, M.grass((0.28, 0.42, 0.16)), dz=0.05, rim=kerb, rim_w=0.15, name="corner island")
+    # markings
+    def marks(x, y):
+        on = np.zeros(len(x), bool)
+        for a in angs:
+            u, v = rot(x, y, C[0], C[1], a)
+            inb = (v > vmed) & (v < vmed + vin)
+            outb = (v < -vmed) & (v > -vmed - vout)
+            on |= (u > 22.5) & (u < 26.5) & (v > -vmed - vout + 0.4) & (v < vmed + vin - 0.4) & (((v + 30) % 1.0) < 0.5)   # zebra
+            on |= inb & (np.abs(u - 27.4) < 0.25)                                       # stop line
+            for lv in (vmed + 3.2, vmed + 6.4):
+                on |= (np.abs(v - lv) < 0.075) & (u > 27.5) & ((u < 45) | (((u - 45) % 9) < 3))
+            on |= (np.abs(v + vmed + 3.25) < 0.075) & (u > 27.5) & (((u - 27.5) % 9) < 3)
+            on |= (np.abs(np.abs(v) - 0.2) < 0.075) & (u > 62)                           # double centre line
+            # arrows (shaft + head) in each inbound lane
+            for lc in (vmed + 1.6, vmed + 4.8, vmed + 8.0):
+                on |= (np.abs(v - lc) < 0.08) & (u > 31) & (u < 35)
+                on |= (u > 29.5) & (u < 31) & (np.abs(v - lc) < 0.45 * (u - 29.5))
+        return np.where(on, -1.0, 1.0)
+    sc.layer(marks, ROAD, M.solid(WHITE), name="markings")
+    sc.layer(manholes(sc, [(C[0] + 5, C[1] - 3), (C[0] + 40, C[1] + 5), (C[0] - 3, C[1] - 45)]), ROAD, M.solid((0.2, 0.2, 0.2), 0.2))
+    # corner blocks: buildings and trees
+    for qx in (-1, 1):
+        for qy in (-1, 1):
+            for j in range(3):
+                bx = C[0] + qx * rng.uniform(38, 68)
+                by = C[1] + qy * rng.uniform(38, 68)
+                if rsdf(np.array([bx]), np.array([by]))[0] < 16:
+                    continue
+                sc.add(Building(bx, by, rng.uniform(12, 20), rng.uniform(10, 16), rng.uniform(-0.05, 0.05), rng.uniform(8, 20), roof="flat",
+                                parapet=0.6, units=int(rng.integers(0, 4)), roof_col=tuple(rng.uniform(0.35, 0.65, 3))))
+            for j in range(8):
+                tx, ty = C[0] + qx * rng.uniform(24, 75), C[1] + qy * rng.uniform(22, 30)
+                if rsdf(np.array([tx]), np.array([ty]))[0] < 2.5:
+                    continue
+                sc.add(Tree(tx, ty, rng.uniform(2.5, 4), rng.uniform(7, 11)))
+    for a in angs:
+        ca, sa = np.cos(a), np.sin(a)
+        for lc in (vmed + 1.6, vmed + 4.8, vmed + 8.0):
+            for k in range(int(rng.integers(1, 3))):
+                u = 30.5 + k * 7 + rng.uniform(0, 1.5)
+                sc.add(Car(C[0] + u * ca - lc * sa, C[1] + u * sa + lc * ca, a + np.pi, van=rng.uniform() < 0.15, h=rng.uniform(1.4, 2.2)))
+        for _ in range(2):
+            u = rng.uniform(35, 75)
+            lc = -(vmed + rng.choice([1.6, 4.9]))
+            sc.add(Car(C[0] + u * ca - lc * sa, C[1] + u * sa + lc * ca, a))
+        for u in (20.0, 45.0, 70.0):
+            for lv in (vmed + vin + 1.0, -(vmed + vout + 1.0)):
+                sc.add(Disc(C[0] + u * ca - lv * sa, C[1] + u * sa + lv * ca, 0.12, 7.5))
+        for _ in range(3):
+            u = rng.uniform(20, 75)
+            lv = rng.choice([vmed + vin + 2.5, -(vmed + vout + 2.5)])
+            sc.add(Disc(C[0] + u * ca - lv * sa, C[1] + u * sa + lv * ca, 0.25, 1.7, col=tuple(rng.uniform(0.1, 0.8, 3))))
+    return sc
+
+
+def scene_bumps():
+    """7. Speed hump, speed bump, raised table crossing (+9 cm over 1.5 m ramps: still road), lowered kerbs at driveways."""
+    sc = Scene2("speedbumps_table_driveways", 907, 110, 44, 220, 0.015, 0.016, "full16", 300, 55, 135, (420550.0, 5520330.0), 199.0)
+    rng, M = sc.rng, sc.M
+    cy = 22.0
+    pl = Polyline([(0, cy), (110.01, cy)])
+    sc.terrain = lambda x, y: 0.012 * x
+    asph = M.asphalt((0.32, 0.32, 0.33), wear=0.06)
+    walk = M.pavers((0.6, 0.58, 0.55), a=0.2, b=0.1, var=0.2)
+    kerb = M.solid((0.74, 0.73, 0.71))
+    half, sw = 3.25, 2.2
+
+    def hump(s):
+        z = 0.08 * np.sin(np.pi * np.clip((s - 18) / 3.8, 0, 1)) ** 2            # round-top hump 3.8 m, 8 cm
+        z += 0.07 * np.sin(np.pi * np.clip((s - 84) / 0.6, 0, 1))                # short bump 0.6 m, 7 cm
+        tb = np.clip((s - 48.5) / 1.5, 0, 1) * np.clip((57.5 - s) / 1.5, 0, 1)    # table: ramps 1.5 m, top 48.5+1.5 .. 56
+        return z + 0.09 * np.clip(tb * 1.0, 0, 1) * 1.0
+    def road_dz(x, y):
+        lat, s, _ = pl.local(x, y)
+        return -0.12 + 0.025 * (half - np.abs(lat)) / half + hump(s)
+    sc.layer(lambda x, y: np.full(len(x), -1.0), GROUND, M.grass((0.3, 0.42, 0.18)), dz=0.05, name="front gardens")
+    sc.layer(pl.sdf_band(half + sw), GROUND, walk, dz=0.0, name="sidewalk")
+    drives = []
+    for sgn in (-1, 1):
+        s = rng.uniform(3, 8)
+        while s < 106:
+            if not (45 < s < 61):
+                drives.append((s, sgn))
+            s += rng.uniform(10, 15)
+    for s0, sgn in drives:
+        w = rng.uniform(1.6, 2.0)
+        # driveway across the garden (concrete) and the lowered kerb: the sidewalk ramps down to 2 cm over 0.8 m
+        sc.layer(sdf_box(s0, cy + sgn * (half + sw + 4), w, 4.0), GROUND, M.concrete_slabs((0.56, 0.55, 0.53), a=2.0), dz=0.02, name="driveway")
+        def ramp(x, y, s0=s0, w=w, sgn=sgn):
+            lat, s, _ = pl.local(x, y)
+            return np.maximum(np.abs(s - s0) - w - 0.5, np.where(sgn * lat > 0, np.abs(sgn * lat - half - 0.45) - 0.45, 1.0))
+        def ramp_dz(x, y, s0=s0, w=w):
+            lat, s, _ = pl.local(x, y)
+            t = np.clip((np.abs(lat) - half) / 0.8, 0, 1) * 1.0
+            k = np.clip((w + 0.5 - np.abs(s - s0)) / 0.5, 0, 1)      # kerb drops over 0.5 m at the ends
+            return (-0.10 * (1 - t)) * k
+        sc.layer(ramp, GROUND, walk, dz=ramp_dz, eps=0.05, name="lowered kerb ramp")
+    # on the table the sidewalk meets the carriageway nearly flush (kerb 3 cm)
+    sc.layer(pl.sdf_band(half), ROAD, asph, dz=road_dz, rim=kerb, rim_out=True, name="street (humps, table)")
+    def paint(x, y):
+        lat, s, out = pl.local(x, y)
+        on = (np.abs(lat) < half - 0.1) & (s > 50.5) & (s < 55.5) & (((lat + 20) % 1.0) < 0.5)       # zebra on the table
+        on |= (np.abs(lat) < half) & (((s > 48.5) & (s < 50)) | ((s > 56) & (s < 57.5))) & (np.abs(((lat + 20) % 1.0) - 0.5) < 0.25 * np.minimum(np.abs(s - 48.5), np.abs(s - 57.5)))
+        on |= (np.abs(lat) < half) & (s > 84) & (s < 84.6) & (((lat + 20) % 0.8) < 0.4)                # striped bump
+        on |= (np.abs(lat) < half) & (s > 18) & (s < 21.8) & (np.abs(((lat + 20) % 1.6) - 0.8) < 0.15)
+        return np.where(on, -1.0, 1.0)
+    sc.layer(paint, ROAD, M.solid(WHITE), name="markings")
+    sc.layer(manholes(sc, [(33, cy + 1.0), (70, cy - 1.2), (100, cy + 0.6)]), ROAD, M.solid((0.2, 0.2, 0.2), 0.2))
+    sc.layer(patches(sc, rng, pl, half, 3, (1, 3)), ROAD, M.asphalt((0.25, 0.25, 0.26)))
+    for s0, sgn in drives:
+        sc.add(Building(s0 + rng.uniform(4, 6), cy + sgn * (half + sw + 9 + 4), rng.uniform(8, 10), 8, 0.0, rng.uniform(6, 8), roof="gable", rise=3,
+                        roof_col=tuple(np.array([0.5, 0.28, 0.2]) * rng.uniform(0.8, 1.2)), ridge_along=rng.uniform() < 0.5))
+        if rng.uniform() < 0.5:
+            sc.add(Car(s0, cy + sgn * (half + sw + 3), np.pi / 2))
+    for s in np.arange(8, 105, 9.0):
+        if rng.uniform() < 0.45 and not (44 < s < 62) and all(abs(s - d) > 3.5 for d, g in drives if g < 0):
+            sc.add(Car(s, cy - half + 1.0, 0.0))
+    sc.add(Car(35, cy + 1.6, np.pi))
+    for x in np.arange(10, 110, 22.0):
+        sc.add(Tree(x, cy + half + sw + 1.5, rng.uniform(3, 4), rng.uniform(7, 10)))
+    for x in (47.0, 59.0):
+        for sgn in (-1, 1):
+            sc.add(Disc(x, cy + sgn * (half + 0.35), 0.1, 0.9, col=(0.25, 0.25, 0.27)))
+    for _ in range(6):
+        sc.add(Disc(rng.uniform(0, 110), cy + rng.choice([-1, 1]) * rng.uniform(3.8, 5.2), 0.25, 1.7, col=tuple(rng.uniform(0.1, 0.8, 3))))
+    return sc
+
+
+def scene_hillside(gentle=False):
+    """8. Road on a hillside at 11 %: retaining wall uphill behind a narrow sidewalk, steep grass bank downhill, no sidewalk there.
+    gentle (control): the same road with a 1 m wall, a 10 % slope above it and a 2 m bank (70 % over 3 m, then 5 %)."""
+    sc = Scene2("hillside_11pct_wall" + ("_gentle" if gentle else ""), 908, 130, 60, 90, 0.025, 0.02, "x257", 250, 40, 250, (651120.0, 5191450.0), 612.0)
+    rng, M = sc.rng, sc.M
+    pl = Polyline(bezier((-5, 24), (40, 22), (90, 30), (135, 28)))
+    half, sw = 3.1, 1.8
+    wn = Noise(rng, 130, 60, 20)
+    up_slope, bank_w, below = (0.10, 3.0, 0.05) if gentle else (0.32, 9.0, 0.12)
+    def wall_h(x, y):
+        return (1.0 + 0.2 * wn(x, y)) if gentle else (2.8 + 0.6 * wn(x, y))
+    def terrain(x, y):
+        lat, s, _ = pl.local(x, y)
+        z = 0.11 * s
+        up = lat > half + sw
+        z = z + np.where(up, wall_h(x, y) + up_slope * np.clip(lat - half - sw - 0.35, 0, None), 0.0)
+        dn = lat < -(half + 0.6)
+        z = z + np.where(dn, -0.7 * np.clip(-lat - half - 0.6, 0, bank_w) - below * np.clip(-lat - half - 0.6 - bank_w, 0, None), 0.0)
+        return z
+    sc.terrain = terrain
+    asph = M.asphalt((0.35, 0.35, 0.36), wear=0.08)
+    walk = M.concrete_slabs((0.62, 0.61, 0.58), a=1.0)
+    kerb = M.solid((0.7, 0.7, 0.69))
+    sc.layer(lambda x, y: np.full(len(x), -1.0), GROUND, M.grass((0.31, 0.43, 0.18), dry=0.15), dz=0.0, name="hillside grass")
+    sc.layer(lambda x, y: np.where(pl.local(x, y)[0] < 0, -pl.local(x, y)[0] - (half + 0.6), 1.0), GROUND, M.gravel(), dz=0.0,
+             name="gravel shoulder (downhill)")
+    sc.layer(lambda x, y: np.where(pl.local(x, y)[0] > 0, np.abs(pl.local(x, y)[0] - (half + sw / 2)) - sw / 2, 1.0), GROUND, walk, dz=0.0,
+             name="sidewalk (uphill)")
+    sc.layer(lambda x, y: np.where(pl.local(x, y)[0] > 0, np.abs(pl.local(x, y)[0] - (half + 0.075)) - 0.075, 1.0), GROUND, kerb, dz=None,
+             name="kerb stone (uphill)")
+    sc.layer(lambda x, y: np.where(pl.local(x, y)[0] > 0, np.abs(pl.local(x, y)[0] - (half + sw + 0.175)) - 0.175, 1.0), OTHER,
+             M.solid((0.66, 0.64, 0.6)), dz=None, name="wall coping")
+    # road: cross-fall 2 % towards the uphill gutter (12 cm under the sidewalk), flush with the downhill shoulder
+    sc.layer(pl.sdf_band(half), ROAD, asph, dz=lambda x, y: -0.02 * (pl.local(x, y)[0] + half), name="hill road", eps=0.04)
+    sc.layer(markings_dashed(pl, 0.0, dash=3, gap=6), ROAD, M.solid(WHITE))
+    sc.layer(markings_solid(pl, -(half - 0.2), w=0.12), ROAD, M.solid(WHITE))
+    sc.layer(manholes(sc, [point_on(pl, 30, 1.0)[:2], point_on(pl, 95, -1.0)[:2]]), ROAD, M.solid((0.2, 0.2, 0.2), 0.2))
+    sc.layer(patches(sc, rng, pl, half, 4, (1, 3)), ROAD, M.asphalt((0.27, 0.27, 0.28)))
+    # wall face
+    i = np.arange(0, len(pl.x), 5)
+    wx = pl.x[i] - (half + sw) * pl.ty[i]
+    wy = pl.y[i] + (half + sw) * pl.tx[i]
+    sc.add(Wall(np.c_[wx, wy], lambda x, y: 0.11 * pl.local(x, y)[1],
+                lambda x, y: 0.11 * pl.local(x, y)[1] + wall_h(x, y), frac=0.35))
+    # guard-rail posts on the downhill shoulder, houses uphill, trees downhill
+    for s in np.arange(1, pl.length, 2.0):
+        px, py, _ = point_on(pl, s, -(half + 0.45))
+        sc.add(Disc(px, py, 0.08, 0.75, col=(0.7, 0.7, 0.72)))
+    for s in np.arange(8, pl.length, 18.0):
+        px, py, an = point_on(pl, s + rng.uniform(-2, 2), half + sw + 14 + rng.uniform(0, 3))
+        if py < 56:
+            sc.add(Building(px, py, rng.uniform(9, 12), rng.uniform(8, 10), an, rng.uniform(6, 8), roof="gable", rise=3,
+                            roof_col=tuple(np.array([0.5, 0.3, 0.22]) * rng.uniform(0.8, 1.2))))
+        px, py, an = point_on(pl, s + 9, half + sw + 5 + rng.uniform(0, 2))
+        sc.add(Tree(px, py, rng.uniform(2.5, 4), rng.uniform(6, 10)))
+    for s in np.arange(4, pl.length, 9.0):
+        if rng.uniform() < 0.6:
+            px, py, an = point_on(pl, s, -(half + 4 + rng.uniform(0, 8)))
+            sc.add(Tree(px, py, rng.uniform(2.5, 5), rng.uniform(7, 13)))
+    for _ in range(3):
+        px, py, an = point_on(pl, rng.uniform(5, pl.length - 5), rng.choice([-1.6, 1.6]))
+        sc.add(Car(px, py, an))
+    for _ in range(3):
+        px, py, an = point_on(pl, rng.uniform(5, pl.length - 5), half + sw / 2)
+        sc.add(Disc(px, py, 0.25, 1.7, col=tuple(rng.uniform(0.1, 0.8, 3))))
+    return sc
+
+
+SCENES.update({
+    "parked_bumper2bumper": scene_parked,
+    "urban_canyon_shadow": scene_canyon,
+    "dark_sidewalk_cycletrack": scene_darkwalk,
+    "sparse_noisy_20ppm": scene_sparse,
+    "photogrammetry_artefacts": scene_artefacts,
+    "wide_junction_islands": scene_junction,
+    "speedbumps_table_driveways": scene_bumps,
+    "hillside_11pct_wall": scene_hillside,
+    "parked_bumper2bumper_nosmear": lambda: scene_parked(False),
+    "hillside_11pct_wall_gentle": lambda: scene_hillside(True),
+})
+NEW_SCENES = ["parked_bumper2bumper", "urban_canyon_shadow", "dark_sidewalk_cycletrack", "sparse_noisy_20ppm",
+              "photogrammetry_artefacts", "wide_junction_islands", "speedbumps_table_driveways", "hillside_11pct_wall"]
+
+
+
+
 def main(argv):
-    names = list(SCENES) if argv == ["all"] else argv
+    names = list(SCENES) if argv == ["all"] else (NEW_SCENES if argv == ["new"] else argv)
     os.makedirs(OUTDIR, exist_ok=True)
     for nm in names:
         t0 = time.time()

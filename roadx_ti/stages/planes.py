@@ -14,7 +14,12 @@ The ground reference under a point is the lowest point of the 3 x 3 coarse grid 
 with ``ground_slope`` a neighbouring cell's lowest point counts raised by that grade over the
 distance between the cells, so that on steep terrain the reference follows the slope instead of
 lying metres under the street (a cone-limited lower envelope, as morphological ground filters
-bound the terrain's slope).
+bound the terrain's slope). With ``at_grade_share``, a part that is high by that reference stays
+when that share of its outline (sides of its 1 m plan cells, holes filled, towards occupied cells
+beyond) goes on at grade or up: the lowest point beyond lies at most ``at_grade_drop`` under the
+part's own there. A roof's outline drops a storey all round; a street cut into a hillside has a
+wall or slope rising along one side and a shoulder at grade, while its reference lies down the
+bank below it.
 """
 from __future__ import annotations
 
@@ -31,6 +36,7 @@ from roadx_ti.kernels.ransac import SAMPLE_SIZE, fit_plane
 from roadx_ti.segments import segment_medians
 from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
 
+MAX_FOOTPRINT_CELLS = 1 << 24    # a plane's plan raster for filling its holes (larger: holes count as outline)
 MAX_HYPOTHESES = 100_000    # 100 times the paper's 1000: about a second per plane search here
 
 
@@ -61,6 +67,14 @@ class RansacOptions(StageOptions):
         "plane also crosses a sloped street where the street climbs to the roof's height)")
     part_cell: float = Field(1.0, gt=0, description="m: inliers in touching plan cells of this edge are one "
                              "part of their plane (xy_removal: part)")
+    at_grade_share: float | None = Field(None, gt=0, le=1, description="with xy_removal part: a part high "
+                                         "above the ground reference stays when at least this share of its outline "
+                                         "goes on at grade (the lowest point of the plan cell beyond lies within "
+                                         "at_grade_drop of the part's own there): a street on a hillside, whose "
+                                         "reference lies down the bank below it, against a roof, whose edges drop a "
+                                         "storey (None: height alone, METHODS.md R3)")
+    at_grade_drop: float = Field(1.0, gt=0, description="m: the height difference across a part's outline up to "
+                                 "which its surface goes on at grade (kerbs, shoulders, a wall's foot)")
 
 
 def _height_above_local_minimum(xyz, cell_size, ctx=None, slope=0.0):
@@ -108,6 +122,61 @@ def _neighbourhood_minimum(col, row, value, rise=0.0):
     return best
 
 
+class PlanCells:
+    """The lowest point of every occupied plan cell (edge ``cell``) of a cloud, by sorted cell keys
+    (strays far away cost nothing), for the at-grade test of high XY parts."""
+
+    def __init__(self, xyz, cell: float):
+        self.cell = float(cell)
+        self.xyz = xyz
+        ij = np.floor((xyz[:, :2].astype(np.float64) - xyz[:, :2].min(axis=0)) / self.cell).astype(np.int64)
+        self.span = int(ij[:, 1].max()) + 3           # keys of cells one beyond the edge stay distinct
+        self.key = (ij[:, 0] + 1) * self.span + (ij[:, 1] + 1)
+        order = np.lexsort((xyz[:, 2], self.key))     # by cell, lowest first
+        sorted_key = self.key[order]
+        first = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+        self.keys = sorted_key[first]
+        self.lowest = xyz[order[first], 2].astype(np.float64)
+
+    def at_grade_share(self, inliers, part, n_parts: int, drop: float) -> np.ndarray:
+        """Per part of a plane's inliers: the share of its outline (sides between a cell of the
+        plane and an occupied cell outside its footprint, holes filled) where the cell beyond has
+        its lowest point within ``drop`` of the part's lowest point in the cell beside it."""
+        key = self.key[inliers]
+        order = np.lexsort((self.xyz[inliers, 2], key))
+        sorted_key = key[order]
+        first = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
+        own_keys = sorted_key[first]
+        own_lowest = self.xyz[inliers[order[first]], 2].astype(np.float64)
+        own_part = part[order[first]]
+        # the plane's footprint with its holes filled: rooftop units, skylights and parapets
+        # inside a roof are no outline
+        col, row = own_keys // self.span, own_keys % self.span
+        c0, r0 = col.min() - 1, row.min() - 1
+        shape = (int(col.max() - c0) + 2, int(row.max() - r0) + 2)
+        filled = None
+        if shape[0] * shape[1] <= MAX_FOOTPRINT_CELLS:
+            from scipy import ndimage
+            grid = np.zeros(shape, bool)
+            grid[col - c0, row - r0] = True
+            filled = ndimage.binary_fill_holes(grid)
+        at_grade = np.zeros(n_parts)
+        sides = np.zeros(n_parts)
+        for dc, dr in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            beyond = own_keys + dc * self.span + dr
+            if filled is not None:
+                outside = ~filled[col + dc - c0, row + dr - r0]
+            else:
+                j = np.minimum(np.searchsorted(own_keys, beyond), len(own_keys) - 1)
+                outside = own_keys[j] != beyond
+            j = np.minimum(np.searchsorted(self.keys, beyond), len(self.keys) - 1)
+            side = outside & (self.keys[j] == beyond)
+            level = side & (self.lowest[j] >= own_lowest - drop)
+            sides += np.bincount(own_part[side], minlength=n_parts)
+            at_grade += np.bincount(own_part[level], minlength=n_parts)
+        return at_grade / np.maximum(sides, 1.0)
+
+
 class RansacPlanes(Stage):
     name = "ransac_planes"
     Options = RansacOptions
@@ -128,6 +197,7 @@ class RansacPlanes(Stage):
         # points with the matched ones inactive, which draws from them in the same order
         unmatched = np.arange(cloud.n)
         unmatched_xyz = xyz
+        cells = None            # the plan cells' lowest points, made when a part needs them
         for number in range(o.max_planes):
             if len(unmatched) < 3:
                 break
@@ -151,6 +221,10 @@ class RansacPlanes(Stage):
                 found = isolation.parts(xyz[inliers, :2], o.part_cell)
                 part = np.zeros(len(inliers), np.int64) if found.label is None else found.label
                 high = segment_medians(part, height_above_ground[inliers], found.count) > o.dh_max
+                if o.at_grade_share is not None and high.any():
+                    if cells is None:
+                        cells = PlanCells(xyz, o.part_cell)
+                    high &= cells.at_grade_share(inliers, part, found.count, o.at_grade_drop) < o.at_grade_share
                 removed = int(high[part].sum())
                 keep[inliers[high[part]]] = False
             elif kind != "ground":
