@@ -356,18 +356,22 @@ _HASH = -7046029254386353131      # 0x9E3779B97F4A7C15 as a signed 64-bit consta
 
 
 @ti.func
+def _hash(key: ti.i64) -> ti.u64:
+    return ti.cast(key * ti.i64(_HASH), ti.u64)
+
+
+@ti.func
 def _part_slot(key: ti.i64, bits: ti.i32, part_bits: ti.i32) -> ti.i32:
-    """The slot of ``key`` in its partition's table: the hash bits after the ``part_bits`` that
-    chose the partition (_partition_of); with part_bits 0 the same as _slot."""
-    h = ti.cast(key * ti.i64(_HASH), ti.u64) << ti.u64(part_bits)
-    return ti.cast(h >> ti.u64(64 - bits), ti.i32)
+    """The slot of ``key`` in its partition's table: the ``bits`` hash bits after the
+    ``part_bits`` that chose the partition (_partition_of; 0: one table, the top bits)."""
+    return ti.cast((_hash(key) << ti.u64(part_bits)) >> ti.u64(64 - bits), ti.i32)
 
 
 @ti.func
 def _partition_of(key: ti.i64, part_bits: ti.i32) -> ti.i32:
     part = 0
     if part_bits > 0:
-        part = ti.cast(ti.cast(key * ti.i64(_HASH), ti.u64) >> ti.u64(64 - part_bits), ti.i32)
+        part = ti.cast(_hash(key) >> ti.u64(64 - part_bits), ti.i32)
     return part
 
 

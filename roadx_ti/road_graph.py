@@ -103,6 +103,11 @@ def excess_green(mean):
     return (2.0 * mean[:, 1] - mean[:, 0] - mean[:, 2]) / total
 
 
+def chroma_vectors(mean):
+    """Region mean colours minus their grey (the mean of the three channels)."""
+    return mean - mean.mean(axis=1, keepdims=True)
+
+
 def _log_ratio_at(query, lo_mean, lo_w, up_mean, up_w, bandwidth):
     """log(p_lower / p_upper) at the colours ``query``: weighted histograms of the sample colours
     (cells of half the bandwidth), smoothed by a Gaussian of the bandwidth, read at each query's cell."""
@@ -187,7 +192,7 @@ def label_road(graph, density: float, w: Weights = Weights(), centroid=None):
         return np.zeros(0, bool), {"kerb_edges": 0}
     kerb, smooth, b_upper = kerb_relations(graph, w)
     mean = graph.mean_colour()
-    chroma_vec = mean - mean.mean(axis=1, keepdims=True)
+    chroma_vec = chroma_vectors(mean)
     chroma = np.sqrt((chroma_vec ** 2).sum(axis=1))
     d_chroma = np.sqrt(((chroma_vec[pa] - chroma_vec[pb]) ** 2).sum(axis=1))
     d_bright = np.abs(mean[pa].mean(axis=1) - mean[pb].mean(axis=1))
@@ -299,7 +304,7 @@ def kerbless_road(graph, xy, spacing: float, w: Weights = Weights()):
     if n == 0 or len(xy) == 0:
         return road
     mean = graph.mean_colour()
-    chroma = np.sqrt(((mean - mean.mean(axis=1, keepdims=True)) ** 2).sum(axis=1))
+    chroma = np.sqrt((chroma_vectors(mean) ** 2).sum(axis=1))
     plain = (chroma <= w.max_chroma) & (excess_green(mean) < w.green_from)
     cell = max(2.0 * float(spacing), 0.25)
     xy = np.asarray(xy, np.float64)
@@ -324,7 +329,7 @@ def kerbless_road(graph, xy, spacing: float, w: Weights = Weights()):
     if count == 0:
         return road
     index = np.arange(1, count + 1)
-    area = ndimage.sum_labels(np.ones(shape), parts, index) * cell * cell
+    area = np.bincount(parts.ravel(), minlength=count + 1)[1:] * cell * cell
     width = 2.0 * np.array(ndimage.labeled_comprehension(inside, parts, index, lambda v: np.percentile(v, 90),
                                                          float, 0.0))
     length = area / np.maximum(width, 1e-9)

@@ -69,12 +69,12 @@ class RansacOptions(StageOptions):
                              "part of their plane (xy_removal: part)")
     at_grade_share: float | None = Field(None, gt=0, le=1, description="with xy_removal part: a part high "
                                          "above the ground reference stays when at least this share of its outline "
-                                         "goes on at grade (the lowest point of the plan cell beyond lies within "
-                                         "at_grade_drop of the part's own there): a street on a hillside, whose "
+                                         "goes on at grade or up (the lowest point of the plan cell beyond lies at most "
+                                         "at_grade_drop under the part's own there): a street on a hillside, whose "
                                          "reference lies down the bank below it, against a roof, whose edges drop a "
                                          "storey (None: height alone, METHODS.md R3)")
-    at_grade_drop: float = Field(1.0, gt=0, description="m: the height difference across a part's outline up to "
-                                 "which its surface goes on at grade (kerbs, shoulders, a wall's foot)")
+    at_grade_drop: float = Field(1.0, gt=0, description="m: the drop across a part's outline up to which its "
+                                 "surface goes on at grade (kerbs, shoulders, a bank's first metre)")
 
 
 def _height_above_local_minimum(xyz, cell_size, ctx=None, slope=0.0):
@@ -123,25 +123,26 @@ def _neighbourhood_minimum(col, row, value, rise=0.0):
 
 
 class PlanCells:
-    """The lowest point of every occupied plan cell (edge ``cell``) of a cloud, by sorted cell keys
-    (strays far away cost nothing), for the at-grade test of high XY parts."""
+    """The lowest point of every occupied plan cell (edge ``cell``) of a cloud (the grid-min
+    kernel's sparse cells: strays far away cost nothing), by sorted cell keys, for the at-grade
+    test of high XY parts."""
 
     def __init__(self, xyz, cell: float):
-        self.cell = float(cell)
+        from roadx_ti.kernels.grid_min import sparse_cell_minimum
+
         self.xyz = xyz
-        ij = np.floor((xyz[:, :2].astype(np.float64) - xyz[:, :2].min(axis=0)) / self.cell).astype(np.int64)
-        self.span = int(ij[:, 1].max()) + 3           # keys of cells one beyond the edge stay distinct
-        self.key = (ij[:, 0] + 1) * self.span + (ij[:, 1] + 1)
-        order = np.lexsort((xyz[:, 2], self.key))     # by cell, lowest first
-        sorted_key = self.key[order]
-        first = np.flatnonzero(np.r_[True, sorted_key[1:] != sorted_key[:-1]])
-        self.keys = sorted_key[first]
-        self.lowest = xyz[order[first], 2].astype(np.float64)
+        cell_of_point, lowest, col_row = sparse_cell_minimum(xyz, cell, xyz[:, :2].min(axis=0))
+        # cells come in (col, row) order, so their keys are sorted; a margin of one cell keeps the
+        # keys of cells one beyond the edge distinct
+        self.span = int(col_row[:, 1].max()) + 3
+        self.keys = (col_row[:, 0] + 1) * self.span + (col_row[:, 1] + 1)
+        self.key = self.keys[cell_of_point]
+        self.lowest = xyz[lowest, 2].astype(np.float64)
 
     def at_grade_share(self, inliers, part, n_parts: int, drop: float) -> np.ndarray:
         """Per part of a plane's inliers: the share of its outline (sides between a cell of the
         plane and an occupied cell outside its footprint, holes filled) where the cell beyond has
-        its lowest point within ``drop`` of the part's lowest point in the cell beside it."""
+        its lowest point at most ``drop`` under the part's lowest point in the cell beside it."""
         key = self.key[inliers]
         order = np.lexsort((self.xyz[inliers, 2], key))
         sorted_key = key[order]
