@@ -142,3 +142,46 @@ def scene(xy: np.ndarray, stray_share: float = STRAY_SHARE) -> Scene:
     kx, ky = xy[keep, 0], xy[keep, 1]
     bounds = (float(kx.min()), float(ky.min()), float(kx.max()), float(ky.max()))
     return Scene(keep, cell, facts["density"], facts["spacing"], bounds)
+
+
+@dataclass
+class DataEdge:
+    """The outer edge of where a cloud has points: occupied cells (of the density estimate's
+    cell) with two unoccupied cells in a row beside them in x or y. A single empty cell is a gap
+    of sparse sampling, not an edge. What lies at the edge was cut by the tile or survey boundary
+    (or by a void wider than two cells), so its plan extent across the edge is not observed."""
+    keys: np.ndarray        # sorted cell keys of the edge cells
+    cell: float
+
+    def contains(self, xy: np.ndarray) -> np.ndarray:
+        """bool per point of ``xy``: in an edge cell."""
+        xy = np.asarray(xy)
+        if len(self.keys) == 0 or len(xy) == 0:
+            return np.zeros(len(xy), bool)
+        k = _keys(np.floor(xy[:, 0] / self.cell).astype(np.int64), np.floor(xy[:, 1] / self.cell).astype(np.int64))
+        at = np.minimum(np.searchsorted(self.keys, k), len(self.keys) - 1)
+        return self.keys[at] == k
+
+
+def data_edge(xy: np.ndarray) -> DataEdge:
+    """DataEdge of the points ``xy`` ((n, >=2), local coordinates)."""
+    xy = np.asarray(xy)[:, :2]
+    if len(xy) == 0:
+        return DataEdge(np.zeros(0, np.int64), DENSITY_CELL)
+    keys, _, counts = cells(xy, DENSITY_CELL)
+    cell = DENSITY_CELL
+    target = _density(keys, counts, DENSITY_CELL)["cell"]
+    while cell < target:
+        keys, counts, _ = _coarsen(keys, counts)
+        cell *= 2
+    ix, iy = _decode(keys)
+
+    def occupied(dx, dy):
+        other = _keys(ix + dx, iy + dy)
+        at = np.minimum(np.searchsorted(keys, other), len(keys) - 1)
+        return keys[at] == other
+
+    edge = np.zeros(len(keys), bool)
+    for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        edge |= ~occupied(dx, dy) & ~occupied(2 * dx, 2 * dy)
+    return DataEdge(keys[edge], cell)

@@ -17,7 +17,7 @@ import numpy as np
 from roadx_ti.cloud import Cloud
 from roadx_ti.ordering import canonical_order
 from roadx_ti.stages import stage_class
-from roadx_ti.stages.base import CLASS_OTHER, ESTIMATES, StageContext, check_order
+from roadx_ti.stages.base import CLASS_OTHER, DATA_EDGE, ESTIMATES, StageContext, check_order
 
 log = logging.getLogger("roadx_ti")
 
@@ -99,6 +99,10 @@ def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class
         # measured on the whole input before any stage (a tiled run hands in the survey's)
         from roadx_ti.estimates import measure
         ctx.facts[ESTIMATES] = measure(whole)
+    if any(getattr(stage, "uses_data_edge", False) for stage in stages):
+        # the edge of this run's points (a tile's own window), not the survey's
+        from roadx_ti.footprint import data_edge
+        ctx.facts[DATA_EDGE] = data_edge(whole.xyz)
     n = cloud.n
     classification = np.full(n, default_class, np.uint8)
     decided_by = np.zeros(n, np.uint8)

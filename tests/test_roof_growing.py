@@ -948,3 +948,60 @@ def test_roof_under_a_crown_joins_by_edge_growth(ti_arch):
     assert found[1.0][corner].mean() > found[0.0][corner].mean() + 0.15
     for crown in (3, 5):                                    # beside the roof, over it
         assert found[1.0][part == crown].mean() < 0.02
+
+
+def test_data_edge_is_the_outer_boundary_not_a_sampling_gap():
+    from roadx_ti.footprint import data_edge
+
+    rng = np.random.default_rng(5)
+    xy = rng.uniform(0, 30, (30 * 30 * 20, 2))
+    gap = (np.floor(xy[:, 0]) == 10) & (np.floor(xy[:, 1]) == 10)          # one empty 1 m cell
+    void = (xy[:, 0] >= 20) & (xy[:, 0] < 24) & (xy[:, 1] >= 5) & (xy[:, 1] < 9)  # 4 x 4 m void
+    xy = xy[~gap & ~void]
+    edge = data_edge(xy)
+    assert edge.cell == 1.0
+    probe = np.array([[0.5, 15.5], [29.5, 15.5], [15.5, 29.5], [15.5, 15.5],   # outer edges, inside
+                      [9.5, 10.5], [11.5, 10.5], [19.5, 6.5], [24.5, 6.5]])      # by the gap, by the void
+    assert edge.contains(probe).tolist() == [True, True, True, False, False, False, True, True]
+
+
+@pytest.mark.parametrize("edge_cut", [True, False])
+def test_a_roof_cut_by_the_data_edge_is_judged_by_its_cut(edge_cut):
+    """A flat roof 12 m along the data's edge and 2 m deep inside it (the rest of the building is
+    beyond the tile) is kept: its width across the cut is not observed. A 0.4 m line along the
+    edge (a fence top) is not widened. Without edge_cut the width test drops the roof."""
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.footprint import data_edge
+    from roadx_ti.stages.base import DATA_EDGE, StageContext
+    from roadx_ti.stages.roof_filter import RoofFilter
+    from roadx_ti.stages.roof_growing import RoofGrowing
+    from roadx_ti.stages.seeds import RoofSeeds
+
+    rng = np.random.default_rng(2)
+
+    def patch(x0, x1, y0, y1, z, density=20):
+        n = int((x1 - x0) * (y1 - y0) * density)
+        return np.column_stack([rng.uniform(x0, x1, n), rng.uniform(y0, y1, n), z + rng.normal(0, 0.02, n)])
+
+    roof = patch(5, 17, 38, 40, 3.0)
+    fence = patch(25, 37, 0, 0.4, 3.0)
+    ground = patch(0, 40, 0, 40, 0.0)
+    ground = ground[~((ground[:, 0] >= 5) & (ground[:, 0] < 17) & (ground[:, 1] >= 38))
+                    & ~((ground[:, 0] >= 25) & (ground[:, 0] < 37) & (ground[:, 1] < 0.4))]
+    xyz = np.concatenate([roof, fence])
+    cloud = Cloud.from_world(xyz, origin=np.zeros(3))
+    whole = Cloud.from_world(np.concatenate([xyz, ground]), origin=np.zeros(3))
+    ctx = StageContext(point_data={"height_above_ground": cloud.xyz[:, 2].copy()})
+    ctx.facts[DATA_EDGE] = data_edge(whole.xyz)
+    for stage in (RoofSeeds(), RoofGrowing(), RoofFilter({"edge_cut": edge_cut})):
+        result = stage.run(cloud, ctx)
+        ctx.point_data.update(result.point_data)
+    is_roof = np.arange(len(xyz)) < len(roof)
+    kept = result.labels == 6
+    assert not kept[~is_roof].any()
+    if edge_cut:
+        assert kept[is_roof].mean() > 0.95
+        assert result.info["cut_by_data_edge"] == 1
+    else:
+        assert not kept[is_roof].any()
+        assert result.info["dropped_by_width"] >= 1

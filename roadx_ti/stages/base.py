@@ -84,6 +84,9 @@ def spacing_cell(ctx: "StageContext", spacings: float, min_cell: float, fallback
 SURVEY_POINTS = "survey_points"
 # ctx.facts key (and a name in requires / provides): the GroundSurface of the last ground stage
 GROUND_SURFACE = "ground_surface"
+# ctx.facts key: roadx_ti.footprint.DataEdge of the points a pipeline run got (a tile's with its
+# buffer), set before the first stage when a stage declares uses_data_edge
+DATA_EDGE = "data_edge"
 
 # m: the least tile buffer, and the reach a stage declares when its decisions are point-local
 # (even those need their neighbours: kNN statistics, a downsampling stride)
@@ -144,6 +147,8 @@ class Stage:
     # point_data keys of this stage's result written to the output as extra dimensions (untiled
     # runs; float32, NaN for a point the stage did not see)
     writes: ClassVar[tuple[str, ...]] = ()
+    # True: the stage reads ctx.facts[DATA_EDGE] (the outer edge of the run's points)
+    uses_data_edge: ClassVar[bool] = False
 
     @classmethod
     def reach(cls, options: StageOptions, estimates: dict | None = None) -> float:

@@ -16,6 +16,10 @@ Needs roof_growing before it (point_data 'roof_segment') and, for the height tes
 - a segment narrower than min_roof_width is dropped: width = sqrt(12 * smallest eigenvalue of the
   plan-view covariance of its points) (exact for a uniformly sampled rectangle). Vans and trucks
   (2-2.5 m wide) are as high and as large as small roofs; no building roof is that narrow.
+  A segment cut by the edge of the data (edge_cut; ctx.facts DATA_EDGE: a tile's or survey's
+  boundary cuts buildings) has no observed width across the cut: with at least 3 points in the
+  edge cells and at least a third of min_roof_width across, its width is the larger of its width
+  and the length of its cut (the same measure over its points in edge cells).
 - annexes (annex_reach > 0): a segment dropped only by the area or width test (it passes the
   height test) is kept when it holds at least density * annex_min_area points, at most
   annex_max_vegetation of them vegetation-coloured, and one of its points lies in a plan-view
@@ -56,8 +60,8 @@ from pydantic import Field
 
 from roadx_ti.cloud import Cloud
 from roadx_ti.segments import segment_medians
-from roadx_ti.stages.base import (CLASS_BUILDING, CLASS_OTHER, Stage, StageContext, StageOptions, StageResult,
-                                  estimate, spacing_cell, survey_spacing)
+from roadx_ti.stages.base import (CLASS_BUILDING, CLASS_OTHER, DATA_EDGE, Stage, StageContext, StageOptions,
+                                  StageResult, estimate, spacing_cell, survey_spacing)
 
 # footprint_cell 'auto': FOOTPRINT_SPACINGS survey spacings, at least FOOTPRINT_MIN_CELL (m), and
 # FALLBACK_FOOTPRINT_CELL without a spacing estimate (roof_growing's covered test uses the same cell)
@@ -85,6 +89,9 @@ class RoofFilterOptions(StageOptions):
     narrow_max_height: float = Field(3.5, ge=0, description="the width test applies to segments "
                                      "lower than this (m, median height): vehicles are lower; "
                                      "higher narrow segments are walls or roof parts")
+    edge_cut: bool = Field(True, description="a segment cut by the edge of the data (tile or "
+                           "survey boundary) is as wide as its cut is long: its width across the "
+                           "cut is not observed")
     annex_reach: float = Field(1.0, ge=0, description="a segment dropped only by the area or width "
                                "test is kept when its plan-view cells lie within this distance (m) "
                                "of a kept roof's cells: annexes and garages built against a house "
@@ -156,9 +163,9 @@ def occupied_density(xy: np.ndarray, cell: float) -> float:
     return float(len(xy) / (len(np.unique(keys)) * cell * cell))
 
 
-def segment_widths(segment: np.ndarray, xy: np.ndarray, count: int) -> np.ndarray:
-    """Plan-view width per segment id 0..count-1: sqrt(12 * smallest eigenvalue of the xy
-    covariance) in m (a uniformly sampled w x l rectangle gives w). float64."""
+def _plan_extents(segment: np.ndarray, xy: np.ndarray, count: int, largest: bool = False) -> np.ndarray:
+    """Per segment id 0..count-1: sqrt(12 * the smallest (or largest) eigenvalue of the plan-view
+    covariance of its points) in m (a uniformly sampled w x l rectangle gives w, or l). float64."""
     inside = segment >= 0
     seg = segment[inside]
     pts = xy[inside].astype(np.float64)
@@ -168,8 +175,22 @@ def segment_widths(segment: np.ndarray, xy: np.ndarray, count: int) -> np.ndarra
     sxx = np.bincount(seg, d[:, 0] * d[:, 0], minlength=count) / sizes
     syy = np.bincount(seg, d[:, 1] * d[:, 1], minlength=count) / sizes
     sxy = np.bincount(seg, d[:, 0] * d[:, 1], minlength=count) / sizes
-    smallest = (sxx + syy) / 2 - np.sqrt(((sxx - syy) / 2) ** 2 + sxy ** 2)
-    return np.sqrt(12 * np.maximum(smallest, 0))
+    spread = np.sqrt(((sxx - syy) / 2) ** 2 + sxy ** 2)
+    eigen = (sxx + syy) / 2 + (spread if largest else -spread)
+    return np.sqrt(12 * np.maximum(eigen, 0))
+
+
+def segment_widths(segment: np.ndarray, xy: np.ndarray, count: int) -> np.ndarray:
+    """Plan-view width per segment id 0..count-1 (m, float64)."""
+    return _plan_extents(segment, xy, count)
+
+
+def cut_lengths(segment: np.ndarray, xy: np.ndarray, count: int, at_edge: np.ndarray) -> np.ndarray:
+    """Per segment: the length (m) of its points in the data's edge cells (``at_edge``) along their
+    longest plan axis, where it has at least 3 there; else 0."""
+    on = np.where(at_edge, segment, -1)
+    length = _plan_extents(on, xy, count, largest=True)
+    return np.where(np.bincount(on[on >= 0], minlength=count) >= 3, length, 0.0)
 
 
 def annex_segments(segment: np.ndarray, xy: np.ndarray, kept: np.ndarray, candidate: np.ndarray,
@@ -236,6 +257,7 @@ class RoofFilter(Stage):
     Options = RoofFilterOptions
     # and 'height_above_ground' (cloth_ground) when there: without it the height test is skipped
     requires = ("roof_segment",)
+    uses_data_edge = True
 
     @classmethod
     def reach(cls, options, estimates=None) -> float:
@@ -280,8 +302,18 @@ class RoofFilter(Stage):
         else:
             median_height = segment_medians(segment, np.asarray(height), count)
             keep_height = median_height >= o.min_roof_height
+        cut_segments = 0
         if count and o.min_roof_width > 0 and height is not None:
-            narrow = segment_widths(segment, cloud.xyz[:, :2], count) < o.min_roof_width
+            width = segment_widths(segment, cloud.xyz[:, :2], count)
+            edge = ctx.facts.get(DATA_EDGE)
+            if o.edge_cut and edge is not None:
+                # a third of the width across: a line of points along the edge (a fence, a wall's
+                # top) is not a cut roof
+                cut = cut_lengths(segment, cloud.xyz[:, :2], count, edge.contains(cloud.xyz[:, :2]))
+                widened = (cut > width) & (width >= o.min_roof_width / 3)
+                cut_segments = int(np.count_nonzero(widened & (width < o.min_roof_width) & (cut >= o.min_roof_width)))
+                width = np.where(widened, cut, width)
+            narrow = width < o.min_roof_width
             keep_width = ~(narrow & (median_height < o.narrow_max_height))
         kept = keep_area & keep_height & keep_width
         annexes = 0
@@ -338,6 +370,7 @@ class RoofFilter(Stage):
                 "dropped_by_area": int((~keep_area).sum()),
                 "dropped_by_height": int((keep_area & ~keep_height).sum()),
                 "dropped_by_width": int((keep_area & keep_height & ~keep_width).sum()),
+                "cut_by_data_edge": cut_segments,
                 "annexes_kept": annexes, "attached_points": attached,
                 "footprint_cell_m": round(cell, 4), "wall_reach_m": round(wall_reach, 4),
                 "segments_kept": int(kept_count), "roof_points": int(roof.sum())}
