@@ -266,12 +266,14 @@ def cmd_run(args) -> int:
         s = cfg.input.synthetic
         cloud = synthetic.generate(s.kind, s.points, s.seed)
     else:
-        cloud = io.read(cfg.input.paths[0])
+        # LAS/LAZ into LAS/LAZ: the records are not held through the run; the writer streams them
+        # from the input again (every attribute bit for bit, 36 B per point of format 7 less held)
+        cloud = io.read(cfg.input.paths[0], keep_records=not _streams_records(cfg.input.paths[0], out))
     read_s = time.perf_counter() - t0
     log.info("read %d points from %s in %.2f s", cloud.n, cloud.source, read_s)
     if cloud.n == 0:
         raise DataError(f"{cloud.source}: the input holds no points")
-    if cloud.las is None and out.suffix.lower() in (".las", ".laz"):
+    if cloud.las is None and not cloud.records_file and out.suffix.lower() in (".las", ".laz"):
         from roadx_ti.io.las_write import fits_new_file
         if not fits_new_file(cloud.xyz):     # say it now, not after the whole pipeline
             raise DataError(f"{out}: the points of {cloud.source} span more than +-2147 km from their origin, "
@@ -349,6 +351,14 @@ def cmd_run(args) -> int:
     log.info("wrote %s (+ %s, %s%s) in %.2f s total", out, paths["summary"].name, paths["config"].name,
              f", {paths['png'].name}" if cfg.output.report_png else "", time.perf_counter() - t0)
     return EXIT_OK
+
+
+def _streams_records(source, out: Path) -> bool:
+    """True when the run's LAS/LAZ output can stream the records of its LAS/LAZ input from the
+    file (COPC output orders its points itself and takes them all in memory)."""
+    from roadx_ti.io import copc
+    las = (".las", ".laz")
+    return Path(source).suffix.lower() in las and out.suffix.lower() in las and not copc.is_copc_path(out)
 
 
 def _scene_name(cfg, cloud) -> str:

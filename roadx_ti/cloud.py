@@ -25,6 +25,9 @@ class Cloud:
     nir: np.ndarray | None = None           # (n,) uint16: near infrared (LAS point formats 8 and 10)
     attributes: dict = field(default_factory=dict)  # other per-point arrays (non-LAS formats)
     las: object | None = None               # laspy.LasData this cloud came from, if any
+    # a LAS/LAZ file whose point records are this cloud's points in this order, not held in memory
+    # (io.read(..., keep_records=False)): the writer streams them from there
+    records_file: str = ""
     source: str = ""                        # path or description, for messages
 
     def __post_init__(self):
@@ -98,7 +101,8 @@ class Cloud:
             return None if a is None else a[index]
         return replace(self, xyz=self.xyz[index], rgb=pick(self.rgb), intensity=pick(self.intensity),
                        classification=pick(self.classification), returns=pick(self.returns), nir=pick(self.nir),
-                       attributes={k: v[index] for k, v in self.attributes.items()}, las=None)
+                       attributes={k: v[index] for k, v in self.attributes.items()}, las=None,
+                       records_file="")
 
     @classmethod
     def from_world(cls, xyz_world: np.ndarray, origin: np.ndarray | None = None, **kw) -> "Cloud":

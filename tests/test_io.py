@@ -80,13 +80,16 @@ def vlr_bytes(header) -> list:
             if type(v).__name__ != "ExtraBytesVlr"]
 
 
-def test_las_round_trip_keeps_every_attribute_bit_exact(shared_data, tmp_path):
+@pytest.mark.parametrize("keep_records", [True, False])
+def test_las_round_trip_keeps_every_attribute_bit_exact(shared_data, tmp_path, keep_records):
+    """With keep_records False the records are not held: the writer streams them from the input."""
     for src in real_files(shared_data):
         digest = sha256(src)
-        cloud = io.read(src)
+        cloud = io.read(src, keep_records=keep_records)
         ref = laspy.read(src)                          # independent reference: laspy's own record
         n = len(ref.points)
-        assert cloud.n == n and cloud.las is not None
+        assert cloud.n == n and (cloud.las is not None) == keep_records
+        assert cloud.records_file == ("" if keep_records else str(src))
         rng = np.random.default_rng(n)
         classes = rng.choice(CLASSES, n)
         label = rng.integers(0, 5, n).astype(np.uint8)
@@ -683,3 +686,30 @@ def test_a_classification_column_outside_0_255_is_named_with_a_value(tmp_path):
     assert cloud.classification is None and cloud.attributes["classification"].max() == 300
     with pytest.raises(io.InputError, match=r"'classification' holds values the LAS classification field cannot \(e.g. 300\)"):
         io.check_writable(tmp_path / "out.laz", cloud, {"roadx_label": "uint8"})
+
+
+def test_streamed_records_equal_the_held_ones_for_a_subset_and_refuse_a_changed_input(tmp_path):
+    """io.read(keep_records=False) then io.write streams the records from the input: the same file
+    as from records held in memory (a subset too, in file order); an input that changed between
+    reading and writing is one InputError and no output."""
+    rng = np.random.default_rng(4)
+    n = 250_000                                     # several of the writer's chunks
+    world = np.round(rng.uniform(0, 300, (n, 3)) * 100) / 100 + np.array([512_000.0, 6_400_000.0, 40.0])
+    src = tmp_path / "in.laz"
+    make_las(src, world, rgb=rng.integers(0, 65536, (n, 3)).astype(np.uint16), gps_time=rng.uniform(0, 1e5, n))
+    held, streamed = io.read(src), io.read(src, keep_records=False)
+    for name in ("xyz", "origin", "rgb", "intensity", "classification", "returns"):
+        assert np.array_equal(getattr(held, name), getattr(streamed, name)), name
+    classes = rng.choice(CLASSES, n)
+    extra = {"segment_id": rng.integers(-1, 99, n).astype(np.int32)}
+    subset = rng.random(n) < 0.6
+    for sub in (None, subset):
+        io.write(tmp_path / "a.laz", held, classification=classes, extra_dims=extra, subset=sub)
+        io.write(tmp_path / "b.laz", streamed, classification=classes, extra_dims=extra, subset=sub)
+        a, b = laspy.read(tmp_path / "a.laz"), laspy.read(tmp_path / "b.laz")
+        assert a.points.array.tobytes() == b.points.array.tobytes()
+        assert len(b.points) == (n if sub is None else int(subset.sum()))
+    make_las(src, world[: n - 10])                  # the input changes during the run
+    with pytest.raises(InputError, match="changed during the run"):
+        io.write(tmp_path / "c.laz", streamed, classification=classes, extra_dims=extra)
+    assert not (tmp_path / "c.laz").exists()

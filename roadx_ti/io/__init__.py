@@ -51,11 +51,13 @@ def _check_input(path: Path) -> None:
         raise fail(path, "empty file (0 bytes)")
 
 
-def read(path, *, bounds=None, origin=None) -> Cloud:
+def read(path, *, bounds=None, origin=None, keep_records: bool = True) -> Cloud:
     """Read a point cloud. ``bounds`` = (xmin, ymin, xmax, ymax) keeps the points with
     xmin <= x < xmax and ymin <= y < ymax (LAS/LAZ are read in chunks, so only those points are held).
     ``origin`` (float64 xyz) overrides the local origin, e.g. to share one origin across tiles.
-    A file with zero points gives an empty Cloud."""
+    ``keep_records`` False (a whole LAS/LAZ file): the point records are not held (``write`` to
+    LAS/LAZ streams them from the file again; ``cloud.records_file``). A file with zero points
+    gives an empty Cloud."""
     path = Path(path)
     kind = _kind(path)
     _check_input(path)
@@ -64,7 +66,7 @@ def read(path, *, bounds=None, origin=None) -> Cloud:
         if len(bounds) != 4 or not (bounds[0] < bounds[2] and bounds[1] < bounds[3]):
             raise ValueError(f"bounds must be (xmin, ymin, xmax, ymax) with min < max, got {bounds}")
     if kind == "las":
-        cloud = _las.read_las(path, bounds, origin)
+        cloud = _las.read_las(path, bounds, origin, keep_records=keep_records)
     else:
         try:
             cloud = _other.READERS[kind](path, origin)
@@ -144,7 +146,7 @@ def check_writable(path, cloud: Cloud, result_dims: dict) -> None:
     results the run will add. A LAS cloud written to LAS keeps its records: nothing to check."""
     path = Path(path)
     kind = _kind(path)
-    if kind == "las" and cloud.las is not None:
+    if kind == "las" and (cloud.las is not None or cloud.records_file):
         return
     classification = np.zeros(cloud.n, np.uint8)
     extra = {name: np.zeros(cloud.n, dtype) for name, dtype in result_dims.items()}

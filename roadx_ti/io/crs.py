@@ -29,4 +29,10 @@ def of_header(header):
 
 def of_cloud(cloud):
     """rasterio CRS of a cloud (LAS input only), or None."""
-    return of_header(cloud.las.header) if cloud.las is not None else None
+    if cloud.las is not None:
+        return of_header(cloud.las.header)
+    if cloud.records_file:
+        import laspy
+        with laspy.open(cloud.records_file) as reader:
+            return of_header(reader.header)
+    return None

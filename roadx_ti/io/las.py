@@ -251,9 +251,12 @@ def _read_all(path, reader) -> laspy.LasData:
     return las
 
 
-def read_las(path, bounds=None, origin=None) -> Cloud:
+def read_las(path, bounds=None, origin=None, keep_records: bool = True) -> Cloud:
     """Read a LAS/LAZ file (optionally only the points inside ``bounds`` = (xmin, ymin, xmax, ymax),
-    half-open) into a Cloud that keeps the LasData in ``cloud.las``."""
+    half-open) into a Cloud that keeps the LasData in ``cloud.las``; with keep_records False (a
+    whole file only) the records are let go after reading and ``cloud.records_file`` names the
+    file, from which the writer streams them again (36 B per point of format 7 not held through
+    a run)."""
     try:
         check_structure(path)
         with laspy.open(path) as reader:
@@ -271,7 +274,8 @@ def read_las(path, bounds=None, origin=None) -> Cloud:
         raise
     except LAS_ERRORS as exc:
         raise _las_error(path, exc) from exc
-    return _cloud_of(path, las, hmins, hmaxs, origin, whole=bounds is None)
+    return _cloud_of(path, las, hmins, hmaxs, origin, whole=bounds is None,
+                     keep_records=keep_records or bounds is not None)
 
 
 def split_las(path, windows, write) -> None:
@@ -338,20 +342,26 @@ def read_las_part(path, records: np.ndarray, origin) -> Cloud:
     return _cloud_of(path, las, hmins, hmaxs, origin, whole=False)
 
 
-def _cloud_of(path, las, hmins, hmaxs, origin, whole: bool) -> Cloud:
+def _cloud_of(path, las, hmins, hmaxs, origin, whole: bool, keep_records: bool = True) -> Cloud:
     world = _world_xyz(las.points)
     _check_magnitude(path, world, las.header.scales)
     if origin is None:
         origin = _local_origin(hmins, hmaxs, las.header.scales, world, whole=whole)
     origin = np.asarray(origin, dtype=np.float64).reshape(3)
+    xyz = (world - origin).astype(np.float32)
+    del world
     rgb, depth = _las_rgb(las)
-    return Cloud(xyz=(world - origin).astype(np.float32), origin=origin, rgb=rgb, color_depth=depth,
-                 intensity=np.asarray(las.intensity, dtype=np.uint16),
-                 classification=np.asarray(las.classification, dtype=np.uint8),
-                 returns=np.column_stack([np.asarray(las.return_number), np.asarray(las.number_of_returns)]
-                                         ).astype(np.uint8),
-                 nir=np.asarray(las.nir, dtype=np.uint16) if "nir" in las.point_format.dimension_names else None,
-                 las=las, source=str(path))
+    # copies, not views of the records, when the records are let go
+    column = np.array if not keep_records else np.asarray
+    cloud = Cloud(xyz=xyz, origin=origin, rgb=rgb, color_depth=depth,
+                  intensity=column(las.intensity, dtype=np.uint16),
+                  classification=column(las.classification, dtype=np.uint8),
+                  returns=np.column_stack([np.asarray(las.return_number), np.asarray(las.number_of_returns)]
+                                          ).astype(np.uint8),
+                  nir=column(las.nir, dtype=np.uint16) if "nir" in las.point_format.dimension_names else None,
+                  las=las if keep_records else None, records_file="" if keep_records else str(path),
+                  source=str(path))
+    return cloud
 
 
 def _las_rgb(las) -> tuple[np.ndarray | None, int]:

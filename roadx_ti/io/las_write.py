@@ -9,6 +9,7 @@ offset = its origin. Outputs are written atomically (roadx_ti.io.atomic).
 from __future__ import annotations
 
 import copy
+from dataclasses import replace
 import logging
 from pathlib import Path
 
@@ -215,13 +216,18 @@ def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subse
     """Write ``cloud`` to LAS, LAZ when ``path`` ends with .laz, COPC when it ends with
     .copc.laz (io/copc.py), atomically."""
     index = point_index(subset, cloud.n)
+    from . import copc
+    if cloud.las is None and cloud.records_file:
+        if not copc.is_copc_path(path):
+            _write_from_records_file(path, cloud, classification, extra_dims, index)
+            return
+        cloud = replace(cloud, las=_records_of(cloud))     # COPC orders its points itself: all in memory
     if cloud.las is not None:
         las = _las_from_record(path, cloud.las, cloud.n, classification, extra_dims, index)
     else:
         las = las_from_arrays(path, cloud, classification, extra_dims, index)
     if len(las.points) > MAX_POINTS:
         raise _too_many(path, len(las.points))
-    from . import copc
     if copc.is_copc_path(path):
         copc.write(path, las)
         return
@@ -230,6 +236,48 @@ def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subse
         with open(tmp, "wb") as f:
             las.write(f, do_compress=compress)
         check_written(path, tmp, cloud.source)
+
+
+def _records_of(cloud: Cloud) -> laspy.LasData:
+    """The point records of ``cloud.records_file``, read whole, checked against the cloud."""
+    from .las import read_las
+    las = read_las(cloud.records_file).las
+    if len(las.points) != cloud.n:
+        raise InputError(f"{cloud.records_file}: holds {len(las.points)} points, {cloud.n} when it was read; "
+                         "it changed during the run")
+    return las
+
+
+def _write_from_records_file(path, cloud: Cloud, classification, extra_dims, index) -> None:
+    """``write_las`` of a cloud whose records stay in ``cloud.records_file``: its records streamed
+    from there chunk by chunk, bit for bit but the classification and ``extra_dims`` (the points
+    of a subset in file order)."""
+    n = cloud.n
+    mask = None
+    if index is not None:
+        mask = index if index.dtype == bool else np.zeros(n, bool)
+        if index.dtype != bool:
+            mask[index] = True
+    extra = {name: np.asarray(values) for name, values in (extra_dims or {}).items()}
+    classes = None if classification is None else np.asarray(classification)
+    position = [0]
+
+    def labels(_, chunk):
+        start, end = position[0], position[0] + len(chunk)
+        position[0] = end
+        if end > n:
+            raise InputError(f"{cloud.records_file}: holds more than the {n} points read from it; it changed "
+                             "during the run")
+        return (None if classes is None else classes[start:end], {k: v[start:end] for k, v in extra.items()},
+                None if mask is None else np.flatnonzero(mask[start:end]))
+
+    def read_whole(_, seen):
+        if seen != n:
+            raise InputError(f"{cloud.records_file}: holds {seen} points, {n} when it was read; it changed "
+                             "during the run")
+
+    empty = (None if classes is None else classes[:0], {k: v[:0] for k, v in extra.items()}, None)
+    write_las_stream(path, [cloud.records_file], labels, empty=empty, on_file=read_whole)
 
 
 def check_written(path, tmp, source="") -> None:
