@@ -89,17 +89,17 @@ def test_default_tiles_are_as_large_as_the_memory_budget_allows(monkeypatch):
     def tile_bytes(points):
         return memory.estimate("road", points * memory.TILE_OVERHEAD) * memory.SAFETY
 
-    small, shared, one, capped = size("4G"), size("8G", workers=2), size("8G"), size("96G")
+    small, shared, one, capped = size("3G"), size("6G", workers=2), size("6G"), size("96G")
     assert small == shared < one < capped
-    for edge, limit in ((small, "4G"), (one, "8G")):     # the window fits, 10 m more would not
+    for edge, limit in ((small, "3G"), (one, "6G")):     # the window fits, 10 m more would not
         budget = memory.parse_size(limit)
         assert tile_bytes(window_points(edge)) <= budget < tile_bytes(window_points(edge + tiling.TILE_SIZE_STEP))
     assert window_points(capped) <= tiling.MAX_WINDOW_POINTS < window_points(capped + tiling.TILE_SIZE_STEP)
     assert size("100M") ** 2 * 100.0 >= tiling.TARGET_TILE_POINTS      # never below a 2 M-point core
     # a dense file among sparse ones sizes the tiles: its windows must fit too
     dense = files + [tiling.CatalogFile("b.laz", (6000.0, 0.0, 6200.0, 200.0), 16_000_000)]   # 400 /m2
-    edge = size("8G", files=dense)
-    assert edge < one and tile_bytes(window_points(edge, 400.0)) <= memory.parse_size("8G")
+    edge = size("6G", files=dense)
+    assert edge < one and tile_bytes(window_points(edge, 400.0)) <= memory.parse_size("6G")
     # an existing cluster's workers: cores of about 2 M points at the header boxes' density
     assert size("96G", scheduler="tcp://host:8786") == tiling.default_tile_size(files)
 
