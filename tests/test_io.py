@@ -713,3 +713,7 @@ def test_streamed_records_equal_the_held_ones_for_a_subset_and_refuse_a_changed_
     with pytest.raises(InputError, match="changed during the run"):
         io.write(tmp_path / "c.laz", streamed, classification=classes, extra_dims=extra)
     assert not (tmp_path / "c.laz").exists()
+    src.unlink()                                    # ... or is removed
+    with pytest.raises(InputError, match="the input is gone"):
+        io.write(tmp_path / "c.laz", streamed, classification=classes, extra_dims=extra)
+    assert not (tmp_path / "c.laz").exists()

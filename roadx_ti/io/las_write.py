@@ -253,6 +253,9 @@ def _write_from_records_file(path, cloud: Cloud, classification, extra_dims, ind
     from there chunk by chunk, bit for bit but the classification and ``extra_dims`` (the points
     of a subset in file order)."""
     n = cloud.n
+    if not Path(cloud.records_file).is_file():
+        raise InputError(f"{cloud.records_file}: the input is gone (moved or removed during the run); the output's "
+                         "point records are written from it, so nothing was written")
     mask = None
     if index is not None:
         mask = index if index.dtype == bool else np.zeros(n, bool)
