@@ -50,11 +50,43 @@ def test_skipped_points_take_their_nearest_processed_points_result():
     result = pipelines.run(cloud, [UniformDownsample({"ratio": 0.3}), LabelByX()])
     done, skipped = np.flatnonzero(result.processed), np.flatnonzero(~result.processed)
     assert 0 < len(done) < len(xyz)
-    _, near = cKDTree(xyz[done].astype(np.float64)).query(xyz[skipped].astype(np.float64), 1)
+    scale = np.array([1.0, 1.0, pipelines.TRANSFER_Z_SCALE])      # heights count TRANSFER_Z_SCALE x
+    _, near = cKDTree(xyz[done].astype(np.float64) * scale).query(xyz[skipped].astype(np.float64) * scale, 1)
     donor = done[near]
     np.testing.assert_array_equal(result.classification[skipped], result.classification[donor])
     np.testing.assert_array_equal(result.segment_id[skipped], result.segment_id[donor])
     np.testing.assert_array_equal(result.decided_by[skipped], result.decided_by[donor])
+
+
+@pytest.mark.parametrize("z_scale", [1.0, None])
+def test_skipped_points_by_a_kerb_take_their_own_surfaces_result(monkeypatch, z_scale):
+    """At a 12 cm kerb the processed point nearest in plan may lie on the other surface; with
+    heights counted TRANSFER_Z_SCALE times every skipped point takes its own surface's label
+    (plain 3D distance, z_scale 1, does not)."""
+    from roadx_ti import pipelines
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import Stage, StageResult
+    from roadx_ti.stages.downsample import UniformDownsample
+
+    class LabelByHeight(Stage):
+        name = "label_by_height"
+
+        def run(self, cloud, ctx):
+            return StageResult(labels=np.where(cloud.xyz[:, 2] < 0.06, 11, 1).astype(np.uint8))
+
+    if z_scale is not None:
+        monkeypatch.setattr(pipelines, "TRANSFER_Z_SCALE", z_scale)
+    rng = np.random.default_rng(8)
+    xy = rng.random((20000, 2)) * [20, 20] - [10, 0]
+    z = np.where(xy[:, 0] < 0, 0.0, 0.12) + rng.normal(0, 0.005, len(xy))    # road | sidewalk
+    cloud = Cloud(xyz=np.column_stack([xy, z]).astype(np.float32), origin=np.zeros(3))
+    result = pipelines.run(cloud, [UniformDownsample({"ratio": 0.3}), LabelByHeight()])
+    skipped = ~result.processed
+    wrong = int(np.count_nonzero(skipped & (result.classification != np.where(xy[:, 0] < 0, 11, 1))))
+    if z_scale is None:
+        assert wrong == 0
+    else:
+        assert wrong > 0
 
 
 def test_hashed_pattern_is_nested_order_free_and_keeps_its_share(ti_arch):
