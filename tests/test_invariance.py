@@ -37,7 +37,8 @@ def scenes():
 # measured on this scene (CPU, road_uav.yaml; pytest --runxfail): in memory vs 1 mm LAZ, 1 cm LAZ and
 # half density, % of the labels that agree: 99.43 / 99.35 / 99.07 at 9492383, 99.45 / 99.38 / 99.14
 # with the surface test (27ad7ea), 98.51 / 98.41 / 98.31 since R4's supported cell reference
-# (874e457; 98.52 / 98.44 / 98.31 with its single-outlier rule): the in-memory run now takes a sidewalk piece (1,703 processed points in regions with
+# (874e457; 98.52 / 98.44 / 98.31 with its single-outlier rule; 98.53 / 98.45 / 98.38 with label transfer
+# counting heights 4x, pipelines.TRANSFER_Z_SCALE, and 99.53 / 99.48 / 99.25 on 300 k seed 0): the in-memory run now takes a sidewalk piece (1,703 processed points in regions with
 # almost no kerb edges to the road) into the road and the deliveries do not (E2 2.02 against 0.61 %); on 300 k
 # seeds 0 and 5 the same change moved 1 mm / half density from 99.51 / 98.98 to 99.57 / 99.20 and
 # from 99.22 / 99.10 to 98.98 / 99.33. Apart from such flips of the kerb-graph cut, 93 % of the
