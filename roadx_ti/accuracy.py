@@ -417,7 +417,9 @@ NOTES = {
         "1 up (+0.039) and 3 down (-0.0005 to -0.0043), pooled 0.8730 -> 0.8743. Every loss is a hedge "
         "(class 5, 99-100 % single returns, 2.1-2.2 m, 1.5-1.65 m wide) running along the window's "
         "edge, which the width test dropped: across a cut, a hedge along the edge and a building's "
-        "remaining strip look alike in plan.",
+        "remaining strip look alike in plan. Tiled runs see each tile's own window as the edge: the six "
+        "tiles as one folder, tiled at 60 m against untiled, agree on 99.926 % of the points with edge_cut "
+        "and 99.931 % without it.",
     ],
 }
 
