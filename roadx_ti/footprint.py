@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from roadx_ti.sorted_keys import find
+
 DENSITY_CELL = 1.0          # first cell edge of the density estimate (map units)
 MAX_DENSITY_CELL = 64.0     # coarsest cell tried
 MIN_POINTS_PER_CELL = 4.0   # mean points per occupied cell that makes a cell size fit the data
@@ -79,6 +81,19 @@ class Occupancy:
         return _density(self.keys, self.counts, DENSITY_CELL)
 
 
+def _density_cells(xy: np.ndarray):
+    """(keys, cell of each point, points per cell, cell edge, _density's facts) of the occupied
+    cells at the density estimate's cell."""
+    keys, inverse, counts = cells(xy, DENSITY_CELL)
+    facts = _density(keys, counts, DENSITY_CELL)
+    cell = DENSITY_CELL
+    while cell < facts["cell"]:
+        keys, counts, to_coarse = _coarsen(keys, counts)
+        inverse = to_coarse[inverse]
+        cell *= 2
+    return keys, inverse, counts, cell, facts
+
+
 def _density(keys: np.ndarray, counts: np.ndarray, cell: float) -> dict:
     n = int(counts.sum())
     if n == 0:
@@ -114,22 +129,14 @@ def scene(xy: np.ndarray, stray_share: float = STRAY_SHARE) -> Scene:
     n = len(xy)
     if n == 0:
         return Scene(np.zeros(0, bool), DENSITY_CELL, 0.0, 0.0, (0.0, 0.0, 0.0, 0.0))
-    keys, inverse, counts = cells(xy, DENSITY_CELL)
-    facts = _density(keys, counts, DENSITY_CELL)
-    cell = DENSITY_CELL
-    while cell < facts["cell"]:
-        keys, counts, to_coarse = _coarsen(keys, counts)
-        inverse = to_coarse[inverse]
-        cell *= 2
+    keys, inverse, counts, cell, facts = _density_cells(xy)
     ix, iy = _decode(keys)
     rows, cols = [], []
     for dx in range(-REACH_CELLS, REACH_CELLS + 1):
         for dy in range(-REACH_CELLS, REACH_CELLS + 1):
             if (dx, dy) <= (0, 0):
                 continue            # each pair once
-            other = _keys(ix + dx, iy + dy)
-            at = np.minimum(np.searchsorted(keys, other), len(keys) - 1)
-            hit = keys[at] == other
+            at, hit = find(keys, _keys(ix + dx, iy + dy))
             rows.append(np.flatnonzero(hit))
             cols.append(at[hit])
     rows, cols = np.concatenate(rows), np.concatenate(cols)
@@ -156,11 +163,10 @@ class DataEdge:
     def contains(self, xy: np.ndarray) -> np.ndarray:
         """bool per point of ``xy``: in an edge cell."""
         xy = np.asarray(xy)
-        if len(self.keys) == 0 or len(xy) == 0:
-            return np.zeros(len(xy), bool)
-        k = _keys(np.floor(xy[:, 0] / self.cell).astype(np.int64), np.floor(xy[:, 1] / self.cell).astype(np.int64))
-        at = np.minimum(np.searchsorted(self.keys, k), len(self.keys) - 1)
-        return self.keys[at] == k
+        if len(xy) == 0:
+            return np.zeros(0, bool)
+        return find(self.keys, _keys(np.floor(xy[:, 0] / self.cell).astype(np.int64),
+                                     np.floor(xy[:, 1] / self.cell).astype(np.int64)))[1]
 
 
 def data_edge(xy: np.ndarray) -> DataEdge:
@@ -168,18 +174,11 @@ def data_edge(xy: np.ndarray) -> DataEdge:
     xy = np.asarray(xy)[:, :2]
     if len(xy) == 0:
         return DataEdge(np.zeros(0, np.int64), DENSITY_CELL)
-    keys, _, counts = cells(xy, DENSITY_CELL)
-    cell = DENSITY_CELL
-    target = _density(keys, counts, DENSITY_CELL)["cell"]
-    while cell < target:
-        keys, counts, _ = _coarsen(keys, counts)
-        cell *= 2
+    keys, _, _, cell, _ = _density_cells(xy)
     ix, iy = _decode(keys)
 
     def occupied(dx, dy):
-        other = _keys(ix + dx, iy + dy)
-        at = np.minimum(np.searchsorted(keys, other), len(keys) - 1)
-        return keys[at] == other
+        return find(keys, _keys(ix + dx, iy + dy))[1]
 
     edge = np.zeros(len(keys), bool)
     for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):

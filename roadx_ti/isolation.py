@@ -25,6 +25,7 @@ from itertools import product
 import numpy as np
 
 from roadx_ti.columns import column_max, column_min
+from roadx_ti.sorted_keys import find
 
 GAP = 100.0              # m: block edge; points of different parts are at least this far apart
 SMALL_PART = 10          # points: a part of at most this many points is isolated for the cloth
@@ -111,8 +112,8 @@ def _sparse_block_parts(keys: np.ndarray, d: int) -> tuple[int, np.ndarray]:
         target = np.zeros(len(keys), np.int64)
         for a in range(d):
             target |= np.clip(moved[:, a], 0, _AXIS_MAX) << shifts[a]
-        j = np.minimum(np.searchsorted(keys, target), len(keys) - 1)
-        hit = valid & (keys[j] == target)
+        j, hit = find(keys, target)
+        hit &= valid
         rows.append(np.flatnonzero(hit))
         cols.append(j[hit])
     rows, cols = np.concatenate(rows), np.concatenate(cols)

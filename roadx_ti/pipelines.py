@@ -3,8 +3,9 @@
 Each stage sees the working set (the points every earlier stage kept). A 'filter' stage decides
 the points it removes (they get its removed class, non-target); a 'subsample' stage only skips
 points for speed, and those take the result of their nearest processed point at the end
-(METHODS.md R1), heights counted TRANSFER_Z_SCALE times (see there). The last labelling stage's labels hold for the points that reached it; points
-that reach the end with no label get the pipeline's default class.
+(METHODS.md R1; heights counted TRANSFER_Z_SCALE times, see there). The last labelling stage's
+labels hold for the points that reached it; points that reach the end with no label get the
+pipeline's default class.
 """
 from __future__ import annotations
 
@@ -195,7 +196,7 @@ def _transfer_labels(xyz_of, processed, classification, decided_by, segment_id):
         return
 
     def scaled(index):
-        xyz = np.array(xyz_of(index), np.float32)
+        xyz = xyz_of(index)             # a new float32 array: scaled in place
         xyz[:, 2] *= np.float32(TRANSFER_Z_SCALE)
         return xyz
     donor = source[nearest(scaled(source), scaled(target))[0]]

@@ -353,15 +353,14 @@ def _cloud_of(path, las, hmins, hmaxs, origin, whole: bool, keep_records: bool =
     rgb, depth = _las_rgb(las)
     # copies, not views of the records, when the records are let go
     column = np.array if not keep_records else np.asarray
-    cloud = Cloud(xyz=xyz, origin=origin, rgb=rgb, color_depth=depth,
-                  intensity=column(las.intensity, dtype=np.uint16),
-                  classification=column(las.classification, dtype=np.uint8),
-                  returns=np.column_stack([np.asarray(las.return_number), np.asarray(las.number_of_returns)]
-                                          ).astype(np.uint8),
-                  nir=column(las.nir, dtype=np.uint16) if "nir" in las.point_format.dimension_names else None,
-                  las=las if keep_records else None, records_file="" if keep_records else str(path),
-                  source=str(path))
-    return cloud
+    return Cloud(xyz=xyz, origin=origin, rgb=rgb, color_depth=depth,
+                 intensity=column(las.intensity, dtype=np.uint16),
+                 classification=column(las.classification, dtype=np.uint8),
+                 returns=np.column_stack([np.asarray(las.return_number), np.asarray(las.number_of_returns)]
+                                         ).astype(np.uint8),
+                 nir=column(las.nir, dtype=np.uint16) if "nir" in las.point_format.dimension_names else None,
+                 las=las if keep_records else None, records_file="" if keep_records else str(path),
+                 source=str(path))
 
 
 def _las_rgb(las) -> tuple[np.ndarray | None, int]:

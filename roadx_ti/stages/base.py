@@ -147,7 +147,8 @@ class Stage:
     # point_data keys of this stage's result written to the output as extra dimensions (untiled
     # runs; float32, NaN for a point the stage did not see)
     writes: ClassVar[tuple[str, ...]] = ()
-    # True: the stage reads ctx.facts[DATA_EDGE] (the outer edge of the run's points)
+    # True: the stage reads ctx.facts[DATA_EDGE] (the outer edge of the run's points); a stage
+    # whose options decide it makes this a property
     uses_data_edge: ClassVar[bool] = False
 
     @classmethod

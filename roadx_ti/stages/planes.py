@@ -34,6 +34,7 @@ from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.ransac import SAMPLE_SIZE, fit_plane
 from roadx_ti.segments import segment_medians
+from roadx_ti.sorted_keys import find
 from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
 
 MAX_FOOTPRINT_CELLS = 1 << 24    # a plane's plan raster for filling its holes (larger: holes count as outline)
@@ -114,9 +115,7 @@ def _neighbourhood_minimum(col, row, value, rise=0.0):
         for dr in (-1, 0, 1):
             if dc == dr == 0:
                 continue
-            target = key + dc * span + dr
-            j = np.minimum(np.searchsorted(sorted_key, target), len(key) - 1)
-            hit = sorted_key[j] == target
+            j, hit = find(sorted_key, key + dc * span + dr)
             raised = value[order[j[hit]]] + np.float32(rise * math.hypot(dc, dr))
             best[hit] = np.minimum(best[hit], raised)
     return best
@@ -168,10 +167,9 @@ class PlanCells:
             if filled is not None:
                 outside = ~filled[col + dc - c0, row + dr - r0]
             else:
-                j = np.minimum(np.searchsorted(own_keys, beyond), len(own_keys) - 1)
-                outside = own_keys[j] != beyond
-            j = np.minimum(np.searchsorted(self.keys, beyond), len(self.keys) - 1)
-            side = outside & (self.keys[j] == beyond)
+                outside = ~find(own_keys, beyond)[1]
+            j, occupied = find(self.keys, beyond)
+            side = outside & occupied
             level = side & (self.lowest[j] >= own_lowest - drop)
             sides += np.bincount(own_part[side], minlength=n_parts)
             at_grade += np.bincount(own_part[level], minlength=n_parts)

@@ -257,7 +257,11 @@ class RoofFilter(Stage):
     Options = RoofFilterOptions
     # and 'height_above_ground' (cloth_ground) when there: without it the height test is skipped
     requires = ("roof_segment",)
-    uses_data_edge = True
+
+    @property
+    def uses_data_edge(self) -> bool:
+        """The run measures its points' edge only when edge_cut will read it."""
+        return self.options.edge_cut and self.options.min_roof_width > 0
 
     @classmethod
     def reach(cls, options, estimates=None) -> float:

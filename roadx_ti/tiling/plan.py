@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from roadx_ti.sorted_keys import find
 from roadx_ti.tiling.catalogs import CatalogFile
 
 TARGET_TILE_POINTS = 2_000_000   # smallest default core tile: about this many points
@@ -156,8 +157,8 @@ def tile_lookup(grid: CoreGrid, keys: np.ndarray, ids: np.ndarray, col, row) -> 
     inside = (col >= 0) & (col < grid.cols) & (row >= 0) & (row < grid.rows)
     if len(keys) and inside.any():
         key = grid.key(col[inside], row[inside])
-        j = np.minimum(np.searchsorted(keys, key), len(keys) - 1)
-        out[inside] = np.where(keys[j] == key, ids[j], -1)
+        j, hit = find(keys, key)
+        out[inside] = np.where(hit, ids[j], -1)
     return out
 
 
