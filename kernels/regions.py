@@ -25,7 +25,7 @@ rounds, one region at a time, for tests.
 
 import numpy as np
 
-from .common import kernel_array, length, like_input, output_array, to_numpy
+from .common import is_ndarray, kernel_array, length, like_input, output_array, to_numpy
 from .taichi_compat import ti
 
 MAX_ROW = 33          # a point and at most 32 neighbours
@@ -322,23 +322,6 @@ class RegionGraph:
         return self.colour_sum / np.maximum(self.count, 1)[:, None]
 
 
-def pair_table(ra, rb, up, down, n_regions):
-    """Region pairs keyed (min, max) with their numbers of edges and summed oriented step
-    probabilities (up: from the first region of the pair to the second); host numpy,
-    deterministic. Each temporary goes once used (this table was the road pipeline's peak)."""
-    ra, rb = np.asarray(ra), np.asarray(rb)
-    flip = ra > rb
-    key = np.minimum(ra, rb).astype(np.int64)
-    key *= n_regions
-    key += np.maximum(ra, rb)
-    uk, inv = _group_keys(key)
-    del key
-    edges = np.bincount(inv, minlength=len(uk)).astype(np.float64)
-    up2 = np.bincount(inv, weights=np.where(flip, down, up), minlength=len(uk))
-    down2 = np.bincount(inv, weights=np.where(flip, up, down), minlength=len(uk))
-    return uk // n_regions, uk % n_regions, edges, up2, down2
-
-
 # fixed-point scales: integer atomics make every sum independent of thread order
 COLOUR_SCALE = 64          # colour units -> int64 sums
 STEP_SCALE = 4096          # step probabilities -> int64 sums
@@ -350,6 +333,7 @@ MAX_LOAD = 0.7             # largest share of the pair table's slots in use (lin
 MAX_TABLE_BITS = 22
 _NO_PART = 255             # an item of the last round that joins regions that are now one
 _KEPT = 254                # ... that is carried as it is
+NARROW_STEPS_MAX = 2**31 - 1  # a pair list's step sums are int32 while every sum is at most this
 EDGE_CHUNK = 1 << 22      # edges per chunk of the final region graph's pass over every edge
 MAX_PART_BITS = 7          # at most 128 partitions (a uint8 per item names its kind)
 _HASH = -7046029254386353131      # 0x9E3779B97F4A7C15 as a signed 64-bit constant
@@ -457,12 +441,13 @@ def _group_keys(keys: np.ndarray):
     _insert_keys(keys, table, bits)
     slot = np.empty(len(keys), np.int32)
     _slots_of_keys(keys, table, bits, slot)
-    table = table[:, 0]
-    used = np.flatnonzero(table != _EMPTY)
-    order = np.argsort(table[used], kind="stable")
-    rank = np.empty(1 << bits, np.int64)
-    rank[used[order]] = np.arange(len(used))
-    return table[used[order]], rank[slot]
+    used = np.flatnonzero(table[:, 0] != _EMPTY)
+    distinct = table[used, 0]
+    del table
+    order = np.argsort(distinct, kind="stable")
+    rank = np.empty(1 << bits, np.int32)
+    rank[used[order]] = np.arange(len(used), dtype=np.int32)
+    return distinct[order], rank[slot]
 
 
 @ti.kernel
@@ -513,51 +498,56 @@ def _carry_counts(ua: ti.types.ndarray(dtype=ti.i32, ndim=1), ub: ti.types.ndarr
 
 
 @ti.kernel
-def _carry_pairs(ua: ti.types.ndarray(dtype=ti.i32, ndim=1), ub: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                 uw: ti.types.ndarray(dtype=ti.i32, ndim=1), us: ti.types.ndarray(dtype=ti.i64, ndim=1),
-                 items: ti.i32, part: ti.types.ndarray(dtype=ti.u8, ndim=1), block: ti.i32,
-                 offsets: ti.types.ndarray(dtype=ti.i32, ndim=2),
+def _gather_kind(ua: ti.types.ndarray(dtype=ti.i32, ndim=1), ub: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                 uw: ti.types.ndarray(ndim=1), us: ti.types.ndarray(ndim=1), items: ti.i32,
+                 part: ti.types.ndarray(dtype=ti.u8, ndim=1), kind: ti.i32, block: ti.i32,
+                 offsets: ti.types.ndarray(dtype=ti.i32, ndim=1),
                  pa: ti.types.ndarray(dtype=ti.i32, ndim=1), pb: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                 pw: ti.types.ndarray(dtype=ti.i32, ndim=1), ps: ti.types.ndarray(dtype=ti.i64, ndim=1)):
-    """The last round's pairs into the next list, in order within each kind (_carry_counts): a pair
-    neither of whose regions took part in the last round's merges (joined another, or was a
-    target) is still a distinct pair and goes to the front; the others, grouped by partition
-    behind them, are re-keyed through the partition tables (merges may have made several of them
-    one pair); a re-keyed pair keeps a region that took part, so it never equals a carried one.
-    ``offsets``: each block's first position per kind, advanced in place."""
+                 pw: ti.types.ndarray(dtype=ti.i32, ndim=1), ps: ti.types.ndarray(ndim=1), wide: ti.template()):
+    """The last round's items of one kind (_carry_counts: _KEPT, or a partition of the re-keyed)
+    into a list of their own, in order, each block from its offset: a pair neither of whose
+    regions took part in the last round's merges is still a distinct pair and is carried as it
+    is; the others are re-keyed through their partition's table (merges may have made several
+    of them one pair); a re-keyed pair keeps a region that took part, so it never equals a
+    carried one. ``uw`` / ``us``: the graph's per-edge uint8 / int16 in the first rounds; ``ps``
+    int64 when ``wide``, else int32."""
     for blk in range(offsets.shape[0]):
+        at = offsets[blk]
         for e in range(blk * block, ti.min(blk * block + block, items)):
-            kind = ti.cast(part[e], ti.i32)
-            if kind != _NO_PART:
-                column = 0
-                if kind != _KEPT:
-                    column = 1 + kind
-                at = offsets[blk, column]
-                offsets[blk, column] = at + 1
+            if ti.cast(part[e], ti.i32) == kind:
                 pa[at] = ua[e]
                 pb[at] = ub[e]
-                pw[at] = uw[e]
-                ps[at] = us[e]
+                pw[at] = ti.cast(uw[e], ti.i32)
+                if ti.static(wide):
+                    ps[at] = ti.cast(us[e], ti.i64)
+                else:
+                    ps[at] = ti.cast(us[e], ti.i32)
+                at += 1
 
 
 @ti.kernel
 def _table_counts(table: ti.types.ndarray(dtype=ti.i64, ndim=2), size: ti.i32, block: ti.i32,
-                  counts: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+                  counts: ti.types.ndarray(dtype=ti.i32, ndim=1), largest: ti.types.ndarray(dtype=ti.i64, ndim=1)):
+    """Per block of slots: the pairs in use and their largest step sum."""
     for blk in range(counts.shape[0]):
         used = 0
+        top = ti.i64(0)
         for s in range(blk * block, ti.min(blk * block + block, size)):
             if table[s, 0] != ti.i64(_EMPTY):
                 used += 1
+                top = ti.max(top, table[s, 2])
         counts[blk] = used
+        largest[blk] = top
 
 
 @ti.kernel
 def _compact_pairs(table: ti.types.ndarray(dtype=ti.i64, ndim=2), size: ti.i32, block: ti.i32, n: ti.i64,
                    offsets: ti.types.ndarray(dtype=ti.i32, ndim=1),
                    pa: ti.types.ndarray(dtype=ti.i32, ndim=1), pb: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                   weight: ti.types.ndarray(dtype=ti.i32, ndim=1), steps: ti.types.ndarray(dtype=ti.i64, ndim=1)):
+                   weight: ti.types.ndarray(dtype=ti.i32, ndim=1), steps: ti.types.ndarray(ndim=1),
+                   wide: ti.template()):
     """The table's pairs, in slot order, as a dense list from each block's offset (_table_counts);
-    every slot is left empty."""
+    every slot is left empty. ``steps``: int64 when ``wide``, else int32 (every sum fits)."""
     for blk in range(offsets.shape[0]):
         at = offsets[blk]
         for s in range(blk * block, ti.min(blk * block + block, size)):
@@ -566,7 +556,10 @@ def _compact_pairs(table: ti.types.ndarray(dtype=ti.i64, ndim=2), size: ti.i32, 
                 pa[at] = ti.cast(key // n, ti.i32)
                 pb[at] = ti.cast(key % n, ti.i32)
                 weight[at] = ti.cast(table[s, 1], ti.i32)
-                steps[at] = table[s, 2]
+                if ti.static(wide):
+                    steps[at] = table[s, 2]
+                else:
+                    steps[at] = ti.cast(table[s, 2], ti.i32)
                 at += 1
                 # the slot emptied again: the table is clear for the next round
                 table[s, 0] = ti.i64(_EMPTY)
@@ -592,21 +585,10 @@ def _mean_colour(csum: ti.template(), count: ti.template(), r: ti.i32):
 
 
 @ti.kernel
-def _mean_colours(csum: ti.types.ndarray(dtype=ti.i64, ndim=2), count: ti.types.ndarray(dtype=ti.i64, ndim=1),
-                  label: ti.types.ndarray(dtype=ti.i32, ndim=1), mean: ti.types.ndarray(dtype=ti.f64, ndim=2)):
-    """Each region's mean colour, once per round (the pairs read it, two per pair)."""
-    for r in range(label.shape[0]):
-        if label[r] == r:
-            m = _mean_colour(csum, count, r)
-            for c in ti.static(range(3)):
-                mean[r, c] = m[c]
-
-
-@ti.kernel
 def _best_neighbours(pa: ti.types.ndarray(dtype=ti.i32, ndim=1), pb: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                     weight: ti.types.ndarray(dtype=ti.i32, ndim=1), steps: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                     weight: ti.types.ndarray(ndim=1), steps: ti.types.ndarray(ndim=1),
                      items: ti.i32, count: ti.types.ndarray(dtype=ti.i64, ndim=1),
-                     mean: ti.types.ndarray(dtype=ti.f64, ndim=2), best: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                     csum: ti.types.ndarray(dtype=ti.i64, ndim=2), best: ti.types.ndarray(dtype=ti.i64, ndim=1),
                      level: ti.f64, size_pass: ti.i32, min_size: ti.i64, max_chroma: ti.f64, veto: ti.f64):
     """Each valid pair offers itself to both of its regions: best[r] = min over (cost bits << 32 |
     other region), an integer minimum (ties to the lower region id). Costs are squared mean
@@ -614,7 +596,9 @@ def _best_neighbours(pa: ti.types.ndarray(dtype=ti.i32, ndim=1), pb: ti.types.nd
     for e in range(items):
         a = pa[e]
         b = pb[e]
-        d = ti.Vector([mean[a, 0] - mean[b, 0], mean[a, 1] - mean[b, 1], mean[a, 2] - mean[b, 2]], ti.f64)
+        # the mean colours from the sums per pair (an (n, 3) float64 array of them was 92 MB at 16 M
+        # points, held through the rounds; the same values)
+        d = _mean_colour(csum, count, a) - _mean_colour(csum, count, b)
         cost2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
         grey = (d[0] + d[1] + d[2]) / 3.0
         c0, c1, c2 = d[0] - grey, d[1] - grey, d[2] - grey
@@ -726,82 +710,103 @@ def _host_round(label, count, csum, ea, eb, weight, step_sum, n, level, size_pas
     return len(me), items
 
 
-def _device_round(state, items, n, level, size_pass, min_size, max_chroma, veto, first):
+def _device_round(state, chunks, n, level, size_pass, min_size, max_chroma, veto, first):
     """The same round with the kernels (64-bit integer atomics), on pair lists that stay in the
-    kernels' memory: ``items`` (index of the buffer holding the last round's pairs, their
-    number). Pairs that the last round's merges did not touch are carried over; only the others
-    go through the hash table. ``first``: None in later rounds; in the first, "distinct" when the
-    graph's edges are distinct pairs (used as they are), else "rekey" (all through the table).
-    Returns the regions joined and the round's pairs (the next round's items)."""
-    label, count, csum, mean, best, hook, targeted, merged, table, buffers = state
-    which, m = items
-    ua, ub, uw, us = buffers[which]
-    if first == "distinct":
-        # the graph's edges are the first round's pairs as they are
-        pa, pb, pw, ps = ua, ub, uw, us
-        pairs, which = m, 1 - which
-    else:
-        pa, pb, pw, ps = _write_buffer(buffers, 1 - which, m, ua)
-        everything = int(first == "rekey")
-        block, n_blocks = _blocks(m)
-        # the re-keyed pairs go through tables of at most about 2^MAX_TABLE_BITS slots, one
-        # partition of their keys (by hash) at a time, each partition's items together (the
-        # partitions are chosen for all m items, an upper bound of those re-keyed)
-        part_bits = min(max(0, int(np.ceil(np.log2(m / (MAX_LOAD * (1 << MAX_TABLE_BITS)))))), MAX_PART_BITS)
-        part = output_array(ti.u8, (m,), pa)
-        counts = output_array(ti.i32, (n_blocks, 1 + (1 << part_bits)), pa)
-        _carry_counts(ua, ub, m, everything, hook, targeted, label, n, part_bits, block, part, counts)
-        c = np.asarray(to_numpy(counts), np.int64)
-        size = c.sum(axis=0)                           # kept, then each partition's items
-        base = np.concatenate([[0], np.cumsum(size)[:-1]])
-        offsets = base[None, :] + np.concatenate([np.zeros((1, c.shape[1]), np.int64), np.cumsum(c[:-1], axis=0)])
-        _carry_pairs(ua, ub, uw, us, m, part, block, kernel_array(offsets.astype(np.int32), np.int32), pa, pb, pw, ps)
-        del part, offsets
-        pairs = int(size[0])
-        if size[1:].any():
-            bits = max(4, int(np.ceil(np.log2(int(size[1:].max()) / MAX_LOAD))))
-            if table[0] is None or int(table[0].shape[0]) < 1 << bits:
-                table[0] = None
-                table[0] = output_array(ti.i64, (1 << bits, 3), table[1])
-                _clear_table(table[0], 1 << bits)      # then each compaction empties it again
-            rows = table[0]
-            tblock, t_blocks = _blocks(1 << bits)
-            for p in np.flatnonzero(size[1:]):
-                # the partition's items lie at base[1 + p] onwards, at or behind where its
-                # distinct pairs are written (after the pairs so far): never over unread items
-                start, items_p = int(base[1 + p]), int(size[1 + p])
-                _insert_pairs(pa, pb, start, items_p, label, rows, bits, part_bits, n)
-                _accumulate_pairs(pa, pb, pw, ps, start, items_p, label, rows, bits, part_bits, n)
-                used = output_array(ti.i32, (t_blocks,), pa)
-                _table_counts(rows, 1 << bits, tblock, used)
-                u = np.asarray(to_numpy(used), np.int64)
-                starts = np.zeros(t_blocks, np.int64)
-                np.cumsum(u[:-1], out=starts[1:])
-                _compact_pairs(rows, 1 << bits, tblock, n, kernel_array((starts + pairs).astype(np.int32), np.int32),
-                               pa, pb, pw, ps)
-                pairs += int(u.sum())
+    kernels' memory: ``chunks``, the last round's pairs as a list of (a, b, edges, steps, count).
+    Pairs that the last round's merges did not touch are carried over into one list; the others
+    go through the hash table, one partition of their keys at a time, each partition's distinct
+    pairs into a list of their own. Every list is made at its exact length: a round holds the
+    last round's pairs and its own, never a buffer for all the items before their merging (at
+    16 M points the second round's was 640 MB and the survey's peak). ``first``: None in later
+    rounds; in the first, "distinct" when the graph's edges are distinct pairs (used as they
+    are), else "rekey" (all through the table). Returns the regions joined and the round's pairs
+    (the next round's chunks)."""
+    label, count, csum, best, hook, targeted, merged, table = state
+    if first != "distinct":
+        chunks = _carry_and_rekey(state, chunks, n, everything=int(first == "rekey"))
     _clear_round(best, targeted)
-    _mean_colours(csum, count, label, mean)
-    _best_neighbours(pa, pb, pw, ps, pairs, count, mean, best, level, size_pass, int(min_size),
-                     float(max_chroma), float(veto))
+    for pa, pb, pw, ps, pairs in chunks:
+        _best_neighbours(pa, pb, pw, ps, pairs, count, csum, best, level, size_pass, int(min_size),
+                         float(max_chroma), float(veto))
     _choose_hooks(best, count, label, hook, targeted)
     merged[0] = 0
     _apply_hooks(hook, targeted, count, csum, merged)
     joined = int(merged[0])
     if joined:
         _relabel(label, hook)
-    return joined, (1 - which, pairs)
+    return joined, chunks
 
 
-def _write_buffer(buffers, index, needed, like):
-    """The item buffer ``buffers[index]`` a round writes its pairs into, made (or made again) when
-    it is missing, too small for ``needed`` pairs, or read-only (the caller's graph edges, which
-    the first rounds read in place). Where the pairs land does not depend on the capacity."""
-    if buffers[index] is None or index in buffers[2] or int(buffers[index][0].shape[0]) < needed:
-        buffers[index] = None          # let the old arrays go before the new ones are made
-        buffers[2].discard(index)
-        buffers[index] = tuple(output_array(t, (max(needed, 1),), like) for t in (ti.i32, ti.i32, ti.i32, ti.i64))
-    return buffers[index]
+def _carry_and_rekey(state, chunks, n, everything):
+    """The pairs of the regions now (see _device_round) as a new list of chunks."""
+    label, hook, targeted, table = state[0], state[4], state[5], state[7]
+    like = chunks[0][0]
+    m = sum(c[4] for c in chunks)
+    # the re-keyed pairs go through tables of at most about 2^MAX_TABLE_BITS slots, one
+    # partition of their keys (by hash) at a time (the partitions are chosen for all m items,
+    # an upper bound of those re-keyed)
+    part_bits = min(max(0, int(np.ceil(np.log2(max(m, 1) / (MAX_LOAD * (1 << MAX_TABLE_BITS)))))), MAX_PART_BITS)
+    kinds = []                  # per chunk: each item's kind, and per block the items of each kind
+    for ua, ub, _, _, items in chunks:
+        block, n_blocks = _blocks(items)
+        part = output_array(ti.u8, (max(items, 1),), ua)
+        counts = output_array(ti.i32, (n_blocks, 1 + (1 << part_bits)), ua)
+        _carry_counts(ua, ub, items, everything, hook, targeted, label, n, part_bits, block, part, counts)
+        kinds.append((part, np.asarray(to_numpy(counts), np.int64), block))
+    size = sum(c.sum(axis=0) for _, c, _ in kinds)        # kept, then each partition's items
+    out = []
+    if size[0]:
+        # int32 step sums unless a source list needed int64 (see below)
+        wide = any(_is_int64(c[3]) for c in chunks)
+        out.append(_gather(chunks, kinds, 0, _KEPT, int(size[0]), like, wide))
+    if size[1:].any():
+        bits = max(4, int(np.ceil(np.log2(int(size[1:].max()) / MAX_LOAD))))
+        # made again when too small, or more than twice too large (later rounds re-key fewer
+        # pairs: a table kept from the second round was 50 MB at the third round's peak)
+        if table[0] is None or int(table[0].shape[0]) not in (1 << bits, 2 << bits):
+            table[0] = None
+            table[0] = output_array(ti.i64, (1 << bits, 3), table[1])
+            _clear_table(table[0], 1 << bits)          # then each compaction empties it again
+        rows, size_t = table[0], 1 << bits
+        tblock, t_blocks = _blocks(size_t)
+    for p in np.flatnonzero(size[1:]):
+        pa, pb, pw, ps, items = _gather(chunks, kinds, 1 + p, int(p), int(size[1 + p]), like, True)
+        _insert_pairs(pa, pb, 0, items, label, rows, bits, part_bits, n)
+        _accumulate_pairs(pa, pb, pw, ps, 0, items, label, rows, bits, part_bits, n)
+        del pa, pb, pw, ps
+        used = output_array(ti.i32, (t_blocks,), like)
+        largest = output_array(ti.i64, (t_blocks,), like)
+        _table_counts(rows, size_t, tblock, used, largest)
+        u = np.asarray(to_numpy(used), np.int64)
+        starts = np.zeros(t_blocks, np.int64)
+        np.cumsum(u[:-1], out=starts[1:])
+        pairs = int(u.sum())
+        # a pair's step sum is at most (STEP_SCALE + 1) x its edges: int32 up to about 500 k edges
+        # between two regions; a list holding a larger sum is int64 (the kernels take either)
+        wide = int(np.max(to_numpy(largest))) > NARROW_STEPS_MAX
+        qa, qb, qw, qs = (output_array(t, (max(pairs, 1),), like) for t in (ti.i32, ti.i32, ti.i32, ti.i64 if wide else ti.i32))
+        _compact_pairs(rows, size_t, tblock, n, kernel_array(starts.astype(np.int32), np.int32), qa, qb, qw, qs, wide)
+        out.append((qa, qb, qw, qs, pairs))
+    return out
+
+
+def _is_int64(a) -> bool:
+    return a.dtype == ti.i64 if is_ndarray(a) else a.dtype == np.int64
+
+
+def _gather(chunks, kinds, column, kind, total, like, wide):
+    """The items of one kind from every chunk, in order, as a new chunk of ``total`` items (step
+    sums int64 when ``wide``, else int32)."""
+    pa, pb, pw, ps = (output_array(t, (max(total, 1),), like) for t in (ti.i32, ti.i32, ti.i32, ti.i64 if wide else ti.i32))
+    at = 0
+    for (ua, ub, uw, us, items), (part, counts, block) in zip(chunks, kinds):
+        per_block = counts[:, column]
+        offsets = np.zeros(len(per_block), np.int64)
+        np.cumsum(per_block[:-1], out=offsets[1:])
+        _gather_kind(ua, ub, uw, us, items, part, kind, block, kernel_array((offsets + at).astype(np.int32), np.int32),
+                     pa, pb, pw, ps, wide)
+        at += int(per_block.sum())
+    return pa, pb, pw, ps, total
 
 
 def _step_evidence(steps_up, steps_down):
@@ -814,10 +819,10 @@ def _step_evidence(steps_up, steps_down):
 
 
 def _quantised_steps(evidence, n_edges: int, chunk: int = 1 << 20):
-    """int64 (E,) rint(up * STEP_SCALE) + rint(down * STEP_SCALE), a chunk of edges at a time
-    (float temporaries of one chunk only; large enough that the evidence function's own
-    threading pays)."""
-    out = np.empty(n_edges, np.int64)
+    """int16 (E,) rint(up * STEP_SCALE) + rint(down * STEP_SCALE) (at most STEP_SCALE + 1: up +
+    down <= 1), a chunk of edges at a time (float temporaries of one chunk only; large enough
+    that the evidence function's own threading pays)."""
+    out = np.empty(n_edges, np.int16)
     for start in range(0, n_edges, chunk):
         up, down = evidence(slice(start, min(start + chunk, n_edges)))
         out[start:start + len(up)] = np.rint(up * STEP_SCALE).astype(np.int64) + np.rint(down * STEP_SCALE).astype(np.int64)
@@ -869,27 +874,22 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
         da, db = np.diff(a32), np.diff(b32)
         distinct = bool(np.all(a32 < b32) and np.all((da > 0) | ((da == 0) & (db > 0))))
         del da, db
-        # two item buffers (a round reads one and writes its pairs into the other; the written
-        # one is made when first needed, for the pairs it must hold), the first holding the graph
-        # edges: (a, b, edges, steps), read in place (index 0 read-only: a32 / b32 may be the
-        # caller's arrays), and the set of read-only buffers
-        first = (a32, b32, np.ones(len(a32), np.int32), up_q)
-        buffers = [tuple(kernel_array(v, v.dtype) for v in first), None, {0}]
-        del first
+        # the first round's pairs are the graph's edges: (a, b, edges, steps, count), a and b read in
+        # place (they may be the caller's arrays), one edge each (uint8) and the edge's steps (int16)
+        chunks = [tuple(kernel_array(v, v.dtype) for v in (a32, b32, np.ones(len(a32), np.uint8), up_q)) + (len(a32),)]
         # the pair table (rows key, edges, steps) is made when a round first re-keys pairs, sized
         # for that round's, and grown when a later round re-keys more
-        state = (label, count, csum, output_array(ti.f64, (n, 3), col)) + tuple(output_array(t, (n,), col) for t in (ti.i64, ti.i32, ti.i32)) \
-            + (output_array(ti.i32, (1,), col), [None, col], buffers)
+        state = (label, count, csum) + tuple(output_array(t, (n,), col) for t in (ti.i64, ti.i32, ti.i32)) \
+            + (output_array(ti.i32, (1,), col), [None, col])
         if n:
             _reset_regions(count, csum, kernel_array(col, np.float32), label)
-    live = (a32, b32, np.ones(len(a32), np.int64), up_q) if host else (0, len(a32))
-    if not host:
-        up_q = None        # the first buffer holds it; it goes when a round writes over that buffer
+    live = (a32, b32, np.ones(len(a32), np.int64), up_q) if host else chunks
+    up_q = chunks = None     # the first chunk holds it; it goes when the second round has re-keyed it
     schedule = [(float(v), 0) for v in levels] + ([(0.0, 1)] if min_size > 1 else [])
     rounds = 0
     regions_left = n
     for level, size_pass in schedule:
-        while rounds < max_rounds and n and (len(live[0]) if host else live[1]):
+        while rounds < max_rounds and n and (len(live[0]) if host else sum(c[4] for c in live)):
             rounds += 1
             if host:
                 joined, live = _host_round(label, count, csum, *live, n, level, size_pass, min_size,
@@ -904,7 +904,7 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
                 break       # the level has settled: the rest of its merges are a thin tail
     label, count, csum = np.asarray(to_numpy(label)).astype(np.int64), to_numpy(count), to_numpy(csum)
     # the rounds' pair lists and table go before the final pair table is built
-    state = buffers = live = up_q = None
+    state = live = None
     return _region_graph(label, count, csum, a32, b32, evidence)
 
 
@@ -917,16 +917,35 @@ def _region_graph(label, count, csum, ea, eb, evidence):
     rank[order] = np.arange(len(roots), dtype=np.int32)
     compact = rank[compact.ravel()]
     roots = roots[order]
-    # the edges between regions, a chunk of edges at a time (two region ids per edge of a 16 M-point
-    # survey's graph were 245 MB at the pipeline's peak)
-    parts = [np.zeros(0, np.int64)]
+    # the edges between regions and their pairs' keys (min, max), a chunk of edges at a time: each
+    # per-edge temporary of this table is large (it was the road pipeline's peak at 16 M points)
+    n_regions = max(len(roots), 1)
+    parts = [np.zeros(0, np.int32)]
     for start in range(0, len(ea), EDGE_CHUNK):
         chunk = slice(start, start + EDGE_CHUNK)
-        parts.append(np.flatnonzero(compact[ea[chunk]] != compact[eb[chunk]]) + start)
+        parts.append((np.flatnonzero(compact[ea[chunk]] != compact[eb[chunk]]) + start).astype(np.int32))
     cross = np.concatenate(parts)
     del parts
-    la, lb = compact[ea[cross]], compact[eb[cross]]
-    up, down = evidence(cross)
-    pa, pb, m, u, d = pair_table(la, lb, up, down, max(len(roots), 1))
+    key = np.empty(len(cross), np.int64)
+    flip = np.empty(len(cross), bool)          # the edge runs from the pair's second region to its first
+    for start in range(0, len(cross), EDGE_CHUNK):
+        chunk = slice(start, start + EDGE_CHUNK)
+        la, lb = compact[ea[cross[chunk]]], compact[eb[cross[chunk]]]
+        flip[chunk] = la > lb
+        key[chunk] = np.minimum(la, lb).astype(np.int64) * n_regions + np.maximum(la, lb)
+    uk, inv = _group_keys(key)
+    del key
+    pa, pb = uk // n_regions, uk % n_regions
+    del uk
+    m = np.bincount(inv, minlength=len(pa)).astype(np.float64)
+    # oriented step probabilities summed per pair (up: from the pair's first region to its second),
+    # edge by edge in order as one bincount would (np.add.at continues each sum across chunks)
+    u, d = np.zeros(len(pa)), np.zeros(len(pa))
+    for start in range(0, len(cross), EDGE_CHUNK):
+        chunk = slice(start, start + EDGE_CHUNK)
+        up, down = evidence(cross[chunk])
+        np.add.at(u, inv[chunk], np.where(flip[chunk], down, up))
+        np.add.at(d, inv[chunk], np.where(flip[chunk], up, down))
+    del cross, flip, inv
     return RegionGraph(compact, count[roots].astype(np.float64),
                        csum[roots].astype(np.float64) / COLOUR_SCALE, pa, pb, m, u, d)

@@ -107,9 +107,9 @@ def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class
     n = cloud.n
     classification = np.full(n, default_class, np.uint8)
     decided_by = np.zeros(n, np.uint8)
-    segment_id = np.full(n, -1, np.int32)
+    segment_id = None            # made when a stage first segments (after the road stage's peak)
     processed = np.ones(n, bool)
-    working = np.arange(n, dtype=np.int64)
+    working = np.arange(n, dtype=np.int32 if n < 2**31 else np.int64)
     extra_dims = {}
     rows = []
     t_start = time.perf_counter()
@@ -129,6 +129,8 @@ def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class
         if result.labels is not None:
             classification[working] = result.labels
         if result.segment_id is not None:
+            if segment_id is None:
+                segment_id = np.full(n, -1, np.int32)
             segment_id[working] = result.segment_id
         if truth is not None and target_class is not None:
             # a labelling stage: the points it gives the target class; a stage that only segments
@@ -167,6 +169,8 @@ def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class
         if progress is not None:
             progress(stage.name, number, len(stages))
     del whole
+    if segment_id is None:
+        segment_id = np.full(n, -1, np.int32)
     if not processed.all():
         _transfer_labels(lambda index: cloud.xyz[index if order is None else order[index]],
                          processed, classification, decided_by, segment_id)

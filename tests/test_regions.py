@@ -170,6 +170,23 @@ def test_region_merging_through_partition_tables_is_the_same(monkeypatch, table_
         assert np.array_equal(parted.pa, other.pa) and np.array_equal(parted.edges, other.edges)
 
 
+def test_region_merging_with_wide_step_sums_is_the_same(monkeypatch):
+    """The rounds keep a pair list's step sums in int32 and switch that list to int64 when a sum
+    would not fit (two regions sharing more than about 500 k edges); forcing the switch early
+    (a limit of a few edges' steps) must give the same merge."""
+    n, a, b, up, down, colour = _merge_case(1, n=3000)
+    args = (n, a, b, up, down, colour, (1.5, 3.0, 6.0), 10.0, 0.1, 6)
+    narrow = regions.merge_regions_by_colour(*args, host=False)
+    monkeypatch.setattr(regions, "NARROW_STEPS_MAX", 3 * regions.STEP_SCALE)
+    seen = []
+    real = regions._compact_pairs
+    monkeypatch.setattr(regions, "_compact_pairs", lambda *a: (seen.append(a[-1]), real(*a))[1])
+    wide = regions.merge_regions_by_colour(*args, host=False)
+    assert True in seen and False in seen          # both kinds of lists were made
+    assert np.array_equal(wide.label, narrow.label) and np.array_equal(wide.count, narrow.count)
+    assert np.array_equal(wide.pa, narrow.pa) and np.array_equal(wide.edges, narrow.edges)
+
+
 @pytest.mark.parametrize("host", [False, True])
 def test_region_merging_takes_the_kerb_evidence_as_a_function(host):
     """The stage hands the kerb probabilities over as a function of edge indices (no two full
