@@ -256,3 +256,22 @@ def test_points_above_the_road_surface_leave_the_road(ti_arch):
     order = rng.permutation(len(xyz))
     again, _ = above_road_surface(xyz[order], regions.coarse_gradient(xyz[order], 2.5), is_road, 32, 4 * noise)
     assert (again == kept[order]).all()
+
+
+def test_road_regions_with_its_rows_queried_again_after_the_merge_is_the_same(monkeypatch):
+    """Above REQUERY_ROWS_ABOVE working points road_regions lets its kNN rows go before the merge
+    and queries them again for the boundary vote (memory for time): the labels and regions must
+    be those of the run that holds them."""
+    from roadx_ti import config, pipelines, synthetic
+    from roadx_ti.stages import road_regions
+    from roadx_ti.stages.base import StageContext
+    from tests.conftest import REPO
+
+    cloud = synthetic.generate("uav-road", 40_000, seed=3)
+    cfg = config.load(REPO / "configs" / "road_uav.yaml")
+    stage = next(s for s in pipelines.build_stages(cfg.stage_list()) if s.name == "road_regions")
+    held = stage.run(cloud, StageContext(seed=0))
+    monkeypatch.setattr(road_regions, "REQUERY_ROWS_ABOVE", 0)
+    queried = stage.run(cloud, StageContext(seed=0))
+    assert (held.labels == 11).sum() > 1000                     # a road was found
+    assert np.array_equal(held.labels, queried.labels) and np.array_equal(held.segment_id, queried.segment_id)

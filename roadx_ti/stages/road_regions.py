@@ -37,6 +37,9 @@ from roadx_ti.stages.base import CLASS_OTHER, CLASS_ROAD, MIN_BUFFER, Stage, Sta
 
 # robust sigma from a median absolute value (Gaussian): 1.4826 * MAD
 MAD_TO_SIGMA = 1.4826
+# above this many working points the kNN rows are not held through the region merge but queried
+# again after it (memory for time: 48 B/pt of rows against about 0.5 s per million points)
+REQUERY_ROWS_ABOVE = 2_000_000
 
 
 class RoadRegionsOptions(StageOptions):
@@ -200,10 +203,12 @@ class RoadRegions(Stage):
         def evidence(index):
             return kerb_evidence(steps[index], step_sigma, o.kerb_min, o.kerb_max, o.kerb_prior)
         colour_f = regions.neighbourhood_median(colour, neighbours)
-        # the rows go before the merge and are queried again after it (the same rows: the query is
-        # deterministic): held through its rounds they were 184 MB at 16 M points, about 0.3 s to
-        # query again
-        del colour, neighbours
+        del colour
+        if n > REQUERY_ROWS_ABOVE:
+            # the rows go before the merge and are queried again after it (the same rows: the
+            # query is exact and deterministic): held through its rounds they were 184 MB of the
+            # 16 M-point road run's peak; the second query costs about 2 s there
+            neighbours = None
         grey = colour_f.mean(axis=1)
         colour_noise = o.colour_noise or max(MAD_TO_SIGMA * float(np.median(np.abs(grey[eb] - grey[ea]))) / np.sqrt(2.0), 0.5)
         del grey        # what the merge does not read goes before it (its rounds are the stage's peak)
@@ -224,7 +229,7 @@ class RoadRegions(Stage):
             road_region = kerbless_road(graph, xyz[:, :2], spacing, weights)
             facts["kerbless_road_points"] = int(graph.count[road_region].sum())
         is_road = road_region[graph.label]
-        if o.boundary_passes:
+        if o.boundary_passes and neighbours is None:
             neighbours = rows(*knn(xyz, k))
         for _ in range(o.boundary_passes):
             # the road's edge on the kerb itself: boundary points go to the side of their height
