@@ -801,6 +801,8 @@ def _gather(chunks, kinds, column, kind, total, like, wide):
     at = 0
     for (ua, ub, uw, us, items), (part, counts, block) in zip(chunks, kinds):
         per_block = counts[:, column]
+        if not per_block.any():
+            continue            # no item of this kind in the chunk: no pass over it
         offsets = np.zeros(len(per_block), np.int64)
         np.cumsum(per_block[:-1], out=offsets[1:])
         _gather_kind(ua, ub, uw, us, items, part, kind, block, kernel_array((offsets + at).astype(np.int32), np.int32),
