@@ -452,7 +452,7 @@ def _group_keys(keys: np.ndarray):
 
 @ti.kernel
 def _accumulate_pairs(ea: ti.types.ndarray(dtype=ti.i32, ndim=1), eb: ti.types.ndarray(dtype=ti.i32, ndim=1),
-                      weight: ti.types.ndarray(dtype=ti.i32, ndim=1), steps: ti.types.ndarray(dtype=ti.i64, ndim=1),
+                      weight: ti.types.ndarray(dtype=ti.i32, ndim=1), steps: ti.types.ndarray(ndim=1),
                       start: ti.i32, items: ti.i32, label: ti.types.ndarray(dtype=ti.i32, ndim=1),
                       table: ti.types.ndarray(dtype=ti.i64, ndim=2), bits: ti.i32, part_bits: ti.i32, n: ti.i64):
     """Items (a, b, edges, steps) [start, start + items): graph edges in the first round, then the
@@ -464,7 +464,7 @@ def _accumulate_pairs(ea: ti.types.ndarray(dtype=ti.i32, ndim=1), eb: ti.types.n
         if la != lb:
             slot = _find_slot(table, ti.min(la, lb) * n + ti.max(la, lb), bits, part_bits)
             ti.atomic_add(table[slot, 1], ti.cast(weight[e], ti.i64))
-            ti.atomic_add(table[slot, 2], steps[e])
+            ti.atomic_add(table[slot, 2], ti.cast(steps[e], ti.i64))
 
 
 @ti.func
@@ -755,9 +755,10 @@ def _carry_and_rekey(state, chunks, n, everything):
         kinds.append((part, np.asarray(to_numpy(counts), np.int64), block))
     size = sum(c.sum(axis=0) for _, c, _ in kinds)        # kept, then each partition's items
     out = []
+    # the gathered items keep int32 step sums unless a source list needed int64 (see below): one
+    # kernel variant each for the usual lists (every variant is compiled or loaded per process)
+    wide = any(_is_int64(c[3]) for c in chunks)
     if size[0]:
-        # int32 step sums unless a source list needed int64 (see below)
-        wide = any(_is_int64(c[3]) for c in chunks)
         out.append(_gather(chunks, kinds, 0, _KEPT, int(size[0]), like, wide))
     if size[1:].any():
         bits = max(4, int(np.ceil(np.log2(int(size[1:].max()) / MAX_LOAD))))
@@ -770,7 +771,7 @@ def _carry_and_rekey(state, chunks, n, everything):
         rows, size_t = table[0], 1 << bits
         tblock, t_blocks = _blocks(size_t)
     for p in np.flatnonzero(size[1:]):
-        pa, pb, pw, ps, items = _gather(chunks, kinds, 1 + p, int(p), int(size[1 + p]), like, True)
+        pa, pb, pw, ps, items = _gather(chunks, kinds, 1 + p, int(p), int(size[1 + p]), like, wide)
         _insert_pairs(pa, pb, 0, items, label, rows, bits, part_bits, n)
         _accumulate_pairs(pa, pb, pw, ps, 0, items, label, rows, bits, part_bits, n)
         del pa, pb, pw, ps
@@ -783,9 +784,9 @@ def _carry_and_rekey(state, chunks, n, everything):
         pairs = int(u.sum())
         # a pair's step sum is at most (STEP_SCALE + 1) x its edges: int32 up to about 500 k edges
         # between two regions; a list holding a larger sum is int64 (the kernels take either)
-        wide = int(np.max(to_numpy(largest))) > NARROW_STEPS_MAX
-        qa, qb, qw, qs = (output_array(t, (max(pairs, 1),), like) for t in (ti.i32, ti.i32, ti.i32, ti.i64 if wide else ti.i32))
-        _compact_pairs(rows, size_t, tblock, n, kernel_array(starts.astype(np.int32), np.int32), qa, qb, qw, qs, wide)
+        wide_out = int(np.max(to_numpy(largest))) > NARROW_STEPS_MAX
+        qa, qb, qw, qs = (output_array(t, (max(pairs, 1),), like) for t in (ti.i32, ti.i32, ti.i32, ti.i64 if wide_out else ti.i32))
+        _compact_pairs(rows, size_t, tblock, n, kernel_array(starts.astype(np.int32), np.int32), qa, qb, qw, qs, wide_out)
         out.append((qa, qb, qw, qs, pairs))
     return out
 
