@@ -785,7 +785,7 @@ def _carry_and_rekey(state, chunks, n, everything):
         # a pair's step sum is at most (STEP_SCALE + 1) x its edges: int32 up to about 500 k edges
         # between two regions; a list holding a larger sum is int64 (the kernels take either)
         wide_out = int(np.max(to_numpy(largest))) > NARROW_STEPS_MAX
-        qa, qb, qw, qs = (output_array(t, (max(pairs, 1),), like) for t in (ti.i32, ti.i32, ti.i32, ti.i64 if wide_out else ti.i32))
+        qa, qb, qw, qs = _pair_list(pairs, like, wide_out)
         _compact_pairs(rows, size_t, tblock, n, kernel_array(starts.astype(np.int32), np.int32), qa, qb, qw, qs, wide_out)
         out.append((qa, qb, qw, qs, pairs))
     return out
@@ -795,10 +795,15 @@ def _is_int64(a) -> bool:
     return a.dtype == ti.i64 if is_ndarray(a) else a.dtype == np.int64
 
 
+def _pair_list(items, like, wide):
+    """Arrays (a, b, edges, steps) for ``items`` pairs: step sums int64 when ``wide``, else int32."""
+    return tuple(output_array(t, (max(items, 1),), like) for t in (ti.i32, ti.i32, ti.i32, ti.i64 if wide else ti.i32))
+
+
 def _gather(chunks, kinds, column, kind, total, like, wide):
     """The items of one kind from every chunk, in order, as a new chunk of ``total`` items (step
     sums int64 when ``wide``, else int32)."""
-    pa, pb, pw, ps = (output_array(t, (max(total, 1),), like) for t in (ti.i32, ti.i32, ti.i32, ti.i64 if wide else ti.i32))
+    pa, pb, pw, ps = _pair_list(total, like, wide)
     at = 0
     for (ua, ub, uw, us, items), (part, counts, block) in zip(chunks, kinds):
         per_block = counts[:, column]
@@ -923,19 +928,17 @@ def _region_graph(label, count, csum, ea, eb, evidence):
     # the edges between regions and their pairs' keys (min, max), a chunk of edges at a time: each
     # per-edge temporary of this table is large (it was the road pipeline's peak at 16 M points)
     n_regions = max(len(roots), 1)
-    parts = [np.zeros(0, np.int32)]
+    crosses, keys, flips = [np.zeros(0, np.int32)], [np.zeros(0, np.int64)], [np.zeros(0, bool)]
     for start in range(0, len(ea), EDGE_CHUNK):
         chunk = slice(start, start + EDGE_CHUNK)
-        parts.append((np.flatnonzero(compact[ea[chunk]] != compact[eb[chunk]]) + start).astype(np.int32))
-    cross = np.concatenate(parts)
-    del parts
-    key = np.empty(len(cross), np.int64)
-    flip = np.empty(len(cross), bool)          # the edge runs from the pair's second region to its first
-    for start in range(0, len(cross), EDGE_CHUNK):
-        chunk = slice(start, start + EDGE_CHUNK)
-        la, lb = compact[ea[cross[chunk]]], compact[eb[cross[chunk]]]
-        flip[chunk] = la > lb
-        key[chunk] = np.minimum(la, lb).astype(np.int64) * n_regions + np.maximum(la, lb)
+        la, lb = compact[ea[chunk]], compact[eb[chunk]]
+        at = np.flatnonzero(la != lb)
+        la, lb = la[at], lb[at]
+        crosses.append((at + start).astype(np.int32))
+        flips.append(la > lb)               # the edge runs from the pair's second region to its first
+        keys.append(np.minimum(la, lb).astype(np.int64) * n_regions + np.maximum(la, lb))
+    cross, flip, key = np.concatenate(crosses), np.concatenate(flips), np.concatenate(keys)
+    del crosses, flips, keys
     uk, inv = _group_keys(key)
     del key
     pa, pb = uk // n_regions, uk % n_regions
