@@ -10,13 +10,16 @@ Neighbours are ordered by (float32 distance, point index): ties break by index, 
 deterministic whatever the scan order. (For k <= SMALL_K the selection itself runs on
 (squared distance, index); rows are then re-ordered by (distance, index).)
 
-Kernels for k <= SMALL_K, each keeping an ascending list of the k best in registers:
+Kernels for k <= SMALL_K:
 * ``_knn_cells`` (CPU): one occupied cell per iteration. The runs of its 27 neighbouring cells
   are looked up once per cell, then its points are queried one after the other, each starting
   from a bound on its k-th distance taken from the previous query (rejects most candidates
-  before any insertion). A query not settled by the 3x3x3 cube adds the second ring's cells
+  up front). Candidates within the bound go, branch-free, into an unordered buffer of 2k slots,
+  cut to its k best by a quickselect whenever it fills (the cut's k-th tightens the bound):
+  cheaper than keeping an ordered list, whose insertions branch on every comparison (k 16:
+  -5 %, k 32: -13 % against the list, same rows). A query not settled by the 3x3x3 cube adds the second ring's cells
   within reach; the few still unsettled (outliers, sparse regions) go to ``_knn_blocks``.
-* ``_knn_blocks``: one query per thread, shell by shell over blocks of 4x4x4 cells (64
+* ``_knn_blocks``: one query per thread, keeping an ascending list of the k best, shell by shell over blocks of 4x4x4 cells (64
   consecutive buckets: cheap to skip empty space) or, on GPUs, for every query over single
   cells; blocks beyond the current k-th are skipped, a brute scan ends hopeless searches
   (``_block_search``, which ``nearest`` also runs for the points of another set: k = 1).
@@ -46,6 +49,8 @@ _INF_KEY = 0x7F800000          # float bits of +inf: larger than any finite dist
 _FIRST_SHIFT = 19              # first bins: 1/16 octave (2^23 float bits per octave), 2 octaves
 _BRUTE_SHIFT = 26              # brute force: 32 bins cover every finite float
 _BLOCK_BITS = 2                # blocks of 4x4x4 cells: 64 consecutive buckets (grid.cell_hash)
+_BUF = 2 * SMALL_K              # candidate buffer of the cell kernel (i64 slots)
+_CAP_PER_K = 2                 # the buffer is cut to its k best when it holds this many per k
 _CPU_GRAIN = 64                # iterations a CPU thread takes at a time (dynamic load balance)
 
 
@@ -258,6 +263,80 @@ def _cell_run(target: ti.math.ivec3, bstart: ti.template(), scell: ti.template()
     return ti.math.ivec2(lo, hi)
 
 
+@ti.func
+def _select_k(buf: ti.template(), m: ti.i32, k: ti.i32) -> ti.i64:
+    """Quickselect on the m distinct packed pairs of ``buf``: afterwards buf[0:k] holds the k
+    smallest (in no order); returns the k-th (their largest). Partitions are branch-free (a
+    conditional swap per element), so unpredictable comparisons cost no mispredictions."""
+    lo = 0
+    hi = m - 1
+    target = k - 1
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        # median of three moved to hi as the pivot
+        a = buf[lo]
+        b = buf[mid]
+        c = buf[hi]
+        med_pos = hi
+        if (a < b) != (a < c):
+            med_pos = lo
+        elif (b < a) != (b < c):
+            med_pos = mid
+        pivot = buf[med_pos]
+        buf[med_pos] = c
+        buf[hi] = pivot
+        store = lo
+        for i in range(lo, hi):
+            v = buf[i]
+            t = buf[store]
+            less = v < pivot
+            buf[store] = ti.select(less, v, t)
+            buf[i] = ti.select(less, t, v)
+            store += ti.cast(less, ti.i32)
+        buf[hi] = buf[store]
+        buf[store] = pivot
+        if store == target:
+            lo = hi
+        elif store < target:
+            lo = store + 1
+        else:
+            hi = store - 1
+    return buf[target]
+
+
+@ti.func
+def _append_run(lo: ti.i32, hi: ti.i32, s: ti.i32, q: ti.math.vec3, buf: ti.template(), m: ti.i32,
+                k: ti.i32, cap: ti.i32, top: ti.i32, order: ti.template(), sxyz: ti.template()) -> ti.math.ivec2:
+    """Append the points at sorted positions [lo, hi) (except s, the query) whose squared-distance
+    key is at most ``top`` to the unordered buffer of m candidates; a full buffer (``cap``) is cut
+    to its k smallest, whose k-th becomes the new ``top``. Returns (m, top). The append is
+    branch-free: a candidate is always written at slot m, and m advances only when it passes."""
+    for j in range(lo, hi):
+        p = ti.math.vec3(sxyz[j, 0], sxyz[j, 1], sxyz[j, 2]) - q
+        key = ti.bit_cast(p.dot(p), ti.i32)
+        buf[m] = _pack(key, order[j])
+        m += ti.cast(key <= top, ti.i32) & ti.cast(j != s, ti.i32)
+        if m == cap:
+            top = _key_of(_select_k(buf, m, k))
+            m = k
+    return ti.math.ivec2(m, top)
+
+
+@ti.func
+def _settle_buffer(buf: ti.template(), m: ti.i32, k: ti.i32, top: ti.i32) -> ti.math.ivec2:
+    """Cut the buffer to its k smallest when it holds more (their k-th becomes ``top``); with
+    exactly k, ``top`` becomes their largest. Returns (size, top)."""
+    if m > k:
+        top = _key_of(_select_k(buf, m, k))
+        m = k
+    elif m == k:
+        kth = buf[0]
+        for r in range(1, k):
+            kth = ti.max(kth, buf[r])
+        top = _key_of(kth)
+    return ti.math.ivec2(m, top)
+
+
 @ti.kernel
 def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
                scell: ti.types.ndarray(dtype=ti.i32, ndim=2), bstart: ti.types.ndarray(dtype=ti.i32, ndim=1),
@@ -300,19 +379,23 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
                         n_runs += 1
         prev_q = ti.math.vec3(0.0)
         prev_kth = ti.math.inf
-        # one list for all the cell's queries: slots at or beyond a query's size are never read
-        best = ti.Vector([0] * SMALL_K, ti.i64)
+        cap = ti.min(_BUF, ti.max(_CAP_PER_K * k, 16))
+        # one buffer for all the cell's queries: slots at or beyond a query's count are never read
+        buf = ti.Vector([0] * _BUF, ti.i64)
         for s in range(a, b):
             q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
             u = (q - ti.math.vec3(ox, oy, oz)) * inv_cell
             # the previous query's k nearest plus that query itself are k points other than q
             # within prev_kth + |q - prev_q|: a bound that rejects most candidates up front
             bound = (prev_kth + (q - prev_q).norm()) * 1.00001 + 1e-30
-            size = 0
+            # keys are the float bits of squared distances (ordered as the floats, no sqrt per
+            # candidate); ``top`` is the largest key that may still be among the k nearest
+            top = ti.bit_cast(bound * bound * 1.00001, ti.i32)
+            m = 0
             # cells are tested in squared cell units: no square root per cell and candidate
             frac = u - ti.cast(c, ti.f32)
             margin = _box_margin(u)
-            bound_sq = bound * bound * inv_cell * inv_cell
+            inv_cell_sq = inv_cell * inv_cell
             # squared gaps to the cells before, at and after the query's along each axis
             # (_box_gap_sq's terms): a run's gap is three look-ups and two additions
             below = ti.max(frac - margin, 0.0)
@@ -322,26 +405,36 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
             gap_z = ti.Vector([below[2] * below[2], 0.0, above[2] * above[2]])
             for r in range(n_runs):
                 gap_sq = gap_x[run_dx[r]] + gap_y[run_dy[r]] + gap_z[run_dz[r]]
-                if gap_sq <= _reach_sq(best, size, k, bound_sq, inv_cell):
-                    size = _offer_run(run_lo[r], run_hi[r], s, q, best, size, k, order, sxyz, bound)
+                if gap_sq <= ti.bit_cast(top, ti.f32) * inv_cell_sq:
+                    mt = _append_run(run_lo[r], run_hi[r], s, q, buf, m, k, cap, top, order, sxyz)
+                    m = mt[0]
+                    top = mt[1]
+            mt = _settle_buffer(buf, m, k, top)
+            m = mt[0]
+            top = mt[1]
             settled = 0
-            if size == k and _kth_distance(best, k) < _safe_radius(u, c, 1, cell_size):
+            if m == k and ti.sqrt(ti.bit_cast(top, ti.f32)) < _safe_radius(u, c, 1, cell_size):
                 settled = 1
             else:
                 for t in range(125):
                     d = ti.math.ivec3(t % 5 - 2, (t // 5) % 5 - 2, t // 25 - 2)
                     if ti.abs(d).max() == 2:
-                        if _box_gap_sq(frac, d, margin) <= _reach_sq(best, size, k, bound_sq, inv_cell):
+                        if _box_gap_sq(frac, d, margin) <= ti.bit_cast(top, ti.f32) * inv_cell_sq:
                             rg = _cell_run(c + d, bstart, scell, mask)
-                            size = _offer_run(rg[0], rg[1], s, q, best, size, k, order, sxyz, bound)
-                if size == k and _kth_distance(best, k) < _safe_radius(u, c, 2, cell_size):
+                            mt = _append_run(rg[0], rg[1], s, q, buf, m, k, cap, top, order, sxyz)
+                            m = mt[0]
+                            top = mt[1]
+                mt = _settle_buffer(buf, m, k, top)
+                m = mt[0]
+                top = mt[1]
+                if m == k and ti.sqrt(ti.bit_cast(top, ti.f32)) < _safe_radius(u, c, 2, cell_size):
                     settled = 1
-            if size == k:
+            if m == k:
                 prev_q = q
-                prev_kth = _kth_distance(best, k)
+                prev_kth = ti.sqrt(ti.bit_cast(top, ti.f32))
             if settled:
-                _emit_best(best, size, k, order[s], self_slots, out_idx, out_dist,
-                           out_mean, emit_rows)
+                # _emit_best orders the k by (distance, index) itself
+                _emit_best(buf, m, k, order[s], self_slots, out_idx, out_dist, out_mean, emit_rows)
             pending[s] = 1 - settled
 
 
