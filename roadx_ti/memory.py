@@ -21,6 +21,12 @@ records); ``synth`` (a synthetic scene generated and written, 2026-12-05): 1 M t
 138 B/pt (uav-road) and 150 B/pt (als-roof). A run is refused (or tiled, with tiling.auto) when the
 estimate times SAFETY exceeds the budget.
 
+Road, 2026-12-05 (commit 7edbbe8): its peak follows the points R1 (uniform downsampling) keeps, not
+the input's: uav-road 4 M seed 0 (194 points/m2, R1 keeps 31 % at its target of 60 /m2) 781 MB,
+seed 6 (61 /m2, R1 keeps 99 %) 1,613 MB, i.e. about 50 B per input point plus 310 per kept point.
+BYTES_PER_POINT road is the whole (every point kept, 360); KEPT_BYTES_PER_POINT the part that
+shrinks with the share R1 keeps (``kept_share``, from the config and the density where known).
+
 ``dense_limit``: how many cells a dense grid or lattice may have: a multiple of the points it is
 laid over (work and memory bounded by the points, not by their extent) and what fits in memory.
 """
@@ -35,7 +41,8 @@ log = logging.getLogger("roadx_ti")
 
 LIMIT_VARIABLE = "ROADX_TI_MEMORY_LIMIT"
 
-BYTES_PER_POINT = {"road": 220, "roof": 230, "ground": 160, "synth": 160}
+BYTES_PER_POINT = {"road": 360, "roof": 230, "ground": 160, "synth": 160}
+KEPT_BYTES_PER_POINT = {"road": 310}   # of BYTES_PER_POINT: bytes of a point only while R1 keeps it
 BASE_BYTES = 200 * 2**20          # peak RSS of a run over a few points (Python, Taichi, numpy, laspy)
 # a tile of a tiled run peaks higher per point of its window than a whole-file run per point:
 # the 137 M-point road survey (benchmarks/paper_scale, 8 GB limit) peaked at 10.8 GB on its
@@ -118,20 +125,43 @@ def available_bytes() -> int:
     return max(run_budget() - _held(), 0)
 
 
-def estimate(pipeline: str, points: int) -> int:
-    """Expected peak memory (bytes) of a run of ``pipeline`` over ``points`` points."""
-    return int(BASE_BYTES + BYTES_PER_POINT.get(pipeline, max(BYTES_PER_POINT.values())) * points)
+def _per_point(pipeline: str, kept_share: float) -> float:
+    whole = BYTES_PER_POINT.get(pipeline, max(BYTES_PER_POINT.values()))
+    share = min(max(float(kept_share), 0.0), 1.0)
+    return whole - KEPT_BYTES_PER_POINT.get(pipeline, 0) * (1.0 - share)
 
 
-def points_that_fit(pipeline: str, budget: int) -> int:
+def estimate(pipeline: str, points: int, kept_share: float = 1.0) -> int:
+    """Expected peak memory (bytes) of a run of ``pipeline`` over ``points`` points, of which the
+    pipeline's downsampling keeps ``kept_share`` (1: all, the upper bound)."""
+    return int(BASE_BYTES + _per_point(pipeline, kept_share) * points)
+
+
+def points_that_fit(pipeline: str, budget: int, kept_share: float = 1.0) -> int:
     """How many points a run of ``pipeline`` can take within ``budget`` bytes (with SAFETY)."""
-    per_point = BYTES_PER_POINT.get(pipeline, max(BYTES_PER_POINT.values()))
-    return max(int((budget / SAFETY - BASE_BYTES) / per_point), 0)
+    return max(int((budget / SAFETY - BASE_BYTES) / _per_point(pipeline, kept_share)), 0)
 
 
-def fits(pipeline: str, points: int, budget: int | None = None) -> tuple[bool, int, int]:
+def kept_share(cfg, points: int, density: float | None) -> float:
+    """Share of the points the config's first stage keeps when it is a uniform downsampling (its
+    ratio, or its target density / points against the data's; 1 when unknown)."""
+    specs = cfg.pipeline_stages()
+    if not specs or specs[0][0] != "uniform_downsample":
+        return 1.0
+    o = specs[0][1]
+    if getattr(o, "ratio", None) is not None:
+        return min(float(o.ratio), 1.0)
+    if getattr(o, "target_density", None) is not None and density:
+        return min(float(o.target_density) / float(density), 1.0)
+    if getattr(o, "target_points", None) is not None and points:
+        return min(float(o.target_points) / float(points), 1.0)
+    return 1.0
+
+
+def fits(pipeline: str, points: int, budget: int | None = None,
+         kept_share: float = 1.0) -> tuple[bool, int, int]:
     """(fits, estimated bytes, budget bytes) for a run of ``pipeline`` over ``points`` points."""
-    need = estimate(pipeline, points)
+    need = estimate(pipeline, points, kept_share)
     budget = run_budget() if budget is None else budget
     return need * SAFETY <= budget, need, budget
 
@@ -176,11 +206,14 @@ def check_run(cfg, points, cloud=None) -> None:
 
     if points is None:
         return
-    ok, need, budget = fits(cfg.pipeline, points)
+    area = _box_area(cfg, cloud)
+    # a box stretched by strays underrates the density: the kept share errs upwards (safe)
+    share = kept_share(cfg, points, points / area if area else None)
+    ok, need, budget = fits(cfg.pipeline, points, kept_share=share)
     if ok:
         return
-    fit = points_that_fit(cfg.pipeline, budget)
-    size = _tile_size_for(cfg, points, max(fit // 2, 1), cloud)
+    fit = points_that_fit(cfg.pipeline, budget, share)
+    size = tile_size_for(points, area, max(fit // 2, 1)) if area else None
     said = (f"{points:,} points through the {cfg.pipeline} pipeline need about "
             f"{format_size(need * SAFETY)}, more than the {format_size(budget)} this run may use")
     if size is None or not cfg.input.paths or fit < 1000:
@@ -193,9 +226,9 @@ def check_run(cfg, points, cloud=None) -> None:
                     "or set tiling.auto: true (--set tiling.auto=true)")
 
 
-def _tile_size_for(cfg, points, target, cloud=None):
-    """Tile edge (m) of about ``target`` points at the input's mean density (header bounds, or the
-    cloud's bounds once read); None without bounds."""
+def _box_area(cfg, cloud=None):
+    """Plan area (m2) of the input's box (header bounds, or the cloud's bounds once read); None
+    without bounds."""
     from roadx_ti import io
 
     if cloud is not None and cloud.n:
@@ -211,4 +244,4 @@ def _tile_size_for(cfg, points, target, cloud=None):
     else:
         return None
     area = max(float(hi[0] - lo[0]), 1.0) * max(float(hi[1] - lo[1]), 1.0)
-    return tile_size_for(points, area, target)
+    return area

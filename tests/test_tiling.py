@@ -73,21 +73,24 @@ def test_default_buffer_follows_the_stages_reach():
 def test_default_tiles_are_as_large_as_the_memory_budget_allows(monkeypatch):
     """The default core: the largest whose window (core + buffer) fits the memory a tile may use,
     where the survey is densest, shared by the local workers, at most MAX_WINDOW_POINTS."""
-    from roadx_ti import memory
+    from cli_helpers import CONFIGS
+    from roadx_ti import config, memory
     from roadx_ti.tiling.run import memory_tile_size
 
+    cfg = config.load(CONFIGS / "road_uav.yaml")       # R1 keeps 60 points/m2
     files = [tiling.CatalogFile("a.laz", (0.0, 0.0, 5000.0, 5000.0), 200_000_000)]   # header box: 8 /m2
     survey, buffer = {"density_per_m2": 100.0}, 30.0
 
     def size(limit, workers=None, scheduler=None, files=files):
         monkeypatch.setenv(memory.LIMIT_VARIABLE, limit)
-        return memory_tile_size("road", files, survey, buffer, workers, scheduler)
+        return memory_tile_size(cfg, files, survey, buffer, workers, scheduler)
 
     def window_points(edge, density=100.0):
         return (edge + 2 * buffer) ** 2 * density
 
-    def tile_bytes(points):
-        return memory.estimate("road", points * memory.TILE_OVERHEAD) * memory.SAFETY
+    def tile_bytes(points, density=100.0):
+        kept = min(60.0 / density, 1.0)
+        return memory.estimate("road", points * memory.TILE_OVERHEAD, kept) * memory.SAFETY
 
     small, shared, one, capped = size("3G"), size("6G", workers=2), size("6G"), size("96G")
     assert small == shared < one < capped
@@ -99,7 +102,13 @@ def test_default_tiles_are_as_large_as_the_memory_budget_allows(monkeypatch):
     # a dense file among sparse ones sizes the tiles: its windows must fit too
     dense = files + [tiling.CatalogFile("b.laz", (6000.0, 0.0, 6200.0, 200.0), 16_000_000)]   # 400 /m2
     edge = size("6G", files=dense)
-    assert edge < one and tile_bytes(window_points(edge, 400.0)) <= memory.parse_size("6G")
+    assert edge < one and tile_bytes(window_points(edge, 400.0), 400.0) <= memory.parse_size("6G")
+    # a sparse survey (R1 keeps every point) gets smaller windows than its points alone would say
+    survey["density_per_m2"] = 30.0
+    sparse = size("6G", files=[tiling.CatalogFile("c.laz", (0.0, 0.0, 5000.0, 5000.0), 750_000_000)])
+    assert tile_bytes(window_points(sparse, 30.0), 30.0) <= memory.parse_size("6G") \
+        < tile_bytes(window_points(sparse + tiling.TILE_SIZE_STEP, 30.0), 30.0)
+    survey["density_per_m2"] = 100.0
     # an existing cluster's workers: cores of about 2 M points at the header boxes' density
     assert size("96G", scheduler="tcp://host:8786") == tiling.default_tile_size(files)
 

@@ -68,7 +68,7 @@ class _Progress:
             self.bar.close()
 
 
-def memory_tile_size(pipeline: str, files, survey: dict, buffer: float, workers, scheduler) -> float:
+def memory_tile_size(cfg, files, survey: dict, buffer: float, workers, scheduler) -> float:
     """The default core tile edge (m): the largest whose window fits the memory each tile may use
     (the run's budget, roadx_ti.memory with its TILE_OVERHEAD, shared by the local workers; at most
     MAX_WINDOW_POINTS) where the survey is densest: the larger of its density over its occupied
@@ -79,13 +79,17 @@ def memory_tile_size(pipeline: str, files, survey: dict, buffer: float, workers,
 
     if scheduler:
         return default_tile_size(files)
-    share = memory.run_budget() / max(1, int(workers or 1))
-    window = min(MAX_WINDOW_POINTS, int(memory.points_that_fit(pipeline, int(share)) / memory.TILE_OVERHEAD))
     boxes = [f.count / ((f.bounds[2] - f.bounds[0]) * (f.bounds[3] - f.bounds[1])) for f in files
              if f.count and f.bounds[2] > f.bounds[0] and f.bounds[3] > f.bounds[1]]
     density = max([survey.get("density_per_m2") or 0.0] + boxes)
     if not density > 0:
         return default_tile_size(files)
+    # the densest tiles hold the most points per window and keep the smallest share of them:
+    # their estimate (points x bytes at that share) is the largest of the survey's
+    kept = memory.kept_share(cfg, 0, density)
+    budget = memory.run_budget() / max(1, int(workers or 1))
+    window = min(MAX_WINDOW_POINTS,
+                 int(memory.points_that_fit(cfg.pipeline, int(budget), kept) / memory.TILE_OVERHEAD))
     return budget_tile_size(density, buffer, window)
 
 
@@ -167,7 +171,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     log.info("survey estimates (%d sampled points) in %.2f s: %s", survey.get("sample_points", 0), estimate_s,
              {k: v for k, v in survey.items() if k not in ("sample_points",)})
     if plan is None:
-        tile_size = memory_tile_size(cfg.pipeline, files, survey, buffer, workers, scheduler)
+        tile_size = memory_tile_size(cfg, files, survey, buffer, workers, scheduler)
         plan = plan_tiles(files, tile_size, buffer, scan=scan_cells)
     log.info("%d file(s), %d points; %d tile(s) of %s m with a %.1f m buffer", len(files), total_points,
              len(plan.tiles), "all" if not np.isfinite(plan.tile_size) else f"{plan.tile_size:g}", plan.buffer)
