@@ -64,3 +64,22 @@ def test_estimate_covers_a_measured_run(tmp_path, pipeline, kind, config):
     # an upper bound, but not a wild one (a base of 200 MB dominates at this size)
     assert measured["peak"] <= estimate * memory.SAFETY, (measured["peak"], estimate)
     assert estimate < 3 * measured["peak"]
+
+
+def test_road_estimate_follows_the_share_that_r1_keeps():
+    """The road peak scales with the points R1 keeps (memory.py: 4 M points at 194 /m2 peak at
+    781 MB, at 61 /m2 at 1,613 MB): the estimate takes R1's option against the data's density."""
+    from cli_helpers import CONFIGS
+    from roadx_ti import config
+
+    road, paper, roof = (config.load(CONFIGS / name) for name in ("road_uav.yaml", "road_uav_paper.yaml",
+                                                                   "roof_als.yaml"))
+    assert memory.kept_share(road, 10**6, 240.0) == pytest.approx(0.25)       # target 60 /m2
+    assert memory.kept_share(road, 10**6, 30.0) == 1.0 == memory.kept_share(road, 10**6, None)
+    assert memory.kept_share(paper, 10**6, 240.0) == pytest.approx(0.5822)    # ratio
+    assert memory.kept_share(roof, 10**6, 240.0) == 1.0                       # no R1
+    sparse, dense = memory.estimate("road", 4_000_000, 1.0), memory.estimate("road", 4_000_000, 0.31)
+    # the two measured peaks lie under their estimates with the margin, and not far under
+    for measured, estimate in ((1613e6, sparse), (781e6, dense)):
+        assert measured <= estimate * memory.SAFETY and estimate < 1.5 * measured
+    assert memory.points_that_fit("road", 2**30, 0.25) > memory.points_that_fit("road", 2**30)
