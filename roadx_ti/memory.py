@@ -44,10 +44,11 @@ LIMIT_VARIABLE = "ROADX_TI_MEMORY_LIMIT"
 BYTES_PER_POINT = {"road": 360, "roof": 230, "ground": 160, "synth": 160}
 KEPT_BYTES_PER_POINT = {"road": 310}   # of BYTES_PER_POINT: bytes of a point only while R1 keeps it
 BASE_BYTES = 200 * 2**20          # peak RSS of a run over a few points (Python, Taichi, numpy, laspy)
-# a tile of a tiled run peaks higher per point of its window than a whole-file run per point:
-# the 137 M-point road survey (benchmarks/paper_scale, 8 GB limit) peaked at 10.8 GB on its
-# largest window of 20.2 M points, about 535 B/pt against 324 untiled; default tiles are sized
-# with this factor (the tile's records and world x/y, the labels of the tiles done so far)
+# a tile of a tiled run peaks higher per point of its window than a whole-file run per point
+# (the tile's records and world x/y, the labels of the tiles done so far); default tiles are sized
+# with this factor. Measured: the 137 M-point road survey (benchmarks/paper_scale, 8 GB limit)
+# peaked at 10.8 GB on windows of up to 20.2 M points at a42f852 (535 B/pt against 324 untiled);
+# at 3ffd321, windows of at most 16 M points, 4.0 GB in process and 5.4 GB with --workers 2
 TILE_OVERHEAD = 1.7
 SAFETY = 1.25                     # the estimate is raised by this factor before it is compared
 
