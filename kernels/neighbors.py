@@ -192,16 +192,6 @@ def _kth_distance(best: ti.template(), k: ti.i32) -> ti.f32:
 
 
 @ti.func
-def _reach_sq(best: ti.template(), size: ti.i32, k: ti.i32, bound_sq: ti.f32, inv_cell: ti.f32) -> ti.f32:
-    """Squared reach of a query in cell units: its bound, or its k-th when the list is full and
-    nearer (keys are squared-distance float bits)."""
-    reach_sq = bound_sq
-    if size == k:
-        reach_sq = ti.min(reach_sq, ti.bit_cast(_key_of(best[k - 1]), ti.f32) * inv_cell * inv_cell)
-    return reach_sq
-
-
-@ti.func
 def _emit_best(best: ti.template(), size: ti.i32, k: ti.i32, qi: ti.i32,
                self_slots: ti.i32, out_idx: ti.template(), out_dist: ti.template(),
                out_mean: ti.template(), emit_rows: ti.i32):

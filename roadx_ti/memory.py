@@ -144,19 +144,12 @@ def points_that_fit(pipeline: str, budget: int, kept_share: float = 1.0) -> int:
 
 
 def kept_share(cfg, points: int, density: float | None) -> float:
-    """Share of the points the config's first stage keeps when it is a uniform downsampling (its
-    ratio, or its target density / points against the data's; 1 when unknown)."""
+    """Share of the points the config's first stage keeps when it declares one (the uniform
+    downsampling's ``kept_share``: its ratio, target density or count against the data's); 1
+    otherwise."""
     specs = cfg.pipeline_stages()
-    if not specs or specs[0][0] != "uniform_downsample":
-        return 1.0
-    o = specs[0][1]
-    if getattr(o, "ratio", None) is not None:
-        return min(float(o.ratio), 1.0)
-    if getattr(o, "target_density", None) is not None and density:
-        return min(float(o.target_density) / float(density), 1.0)
-    if getattr(o, "target_points", None) is not None and points:
-        return min(float(o.target_points) / float(points), 1.0)
-    return 1.0
+    share = getattr(specs[0][1], "kept_share", None) if specs else None
+    return float(share(points, density)) if share else 1.0
 
 
 def fits(pipeline: str, points: int, budget: int | None = None,

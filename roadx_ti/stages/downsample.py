@@ -43,6 +43,16 @@ class UniformOptions(StageOptions):
             raise ValueError("give exactly one of target_points, ratio or target_density")
         return self
 
+    def kept_share(self, points: int | None = None, density: float | None = None) -> float:
+        """Share of ``points`` the stage keeps: its ratio, its target density against the data's
+        ``density`` (points per m2; everything when not denser), or its target count; 1 when the
+        count or density it needs is unknown (the most it can keep)."""
+        if self.ratio is not None:
+            return self.ratio
+        if self.target_density is not None:
+            return min(1.0, self.target_density / density) if density and density > 0 else 1.0
+        return min(1.0, self.target_points / points) if points else 1.0
+
 
 class UniformDownsample(Stage):
     name = "uniform_downsample"
@@ -59,8 +69,7 @@ class UniformDownsample(Stage):
         ratio = o.ratio
         if o.target_density is not None:
             # the survey's density (a tile keeps the survey-wide share of its points)
-            density = estimate(ctx, "density_per_m2") or 0.0
-            ratio = min(1.0, o.target_density / density) if density > 0 else 1.0
+            ratio = o.kept_share(density=estimate(ctx, "density_per_m2"))
         every = o.target_points is None and ratio == 1.0
         isolated = None if every or not cloud.n else isolation.isolated_in(cloud.xyz, isolation.SMALL_PART, ctx)
         rest = None if isolated is None else np.flatnonzero(~isolated)
