@@ -51,7 +51,7 @@ class Weights:
     both_road: float = 6.0        # per kerb edge: both sides road
     lower_road: float = 1.0       # per kerb edge: reward of the lower side being road
     smooth: float = 1.0           # per continuous edge: the two sides differ
-    colour: float = 1.0           # per point: weight of the colour log ratio (at the reference density)
+    colour: float = 0.24          # per point: weight of the colour log ratio (at the reference density)
     colour_bandwidth: float = 6.0   # colour units of the density kernels
     max_chroma: float = 20.0      # regions more chromatic than this lean to not road ...
     chroma_cost: float = 1.0      # ... by this per point and per max_chroma beyond it
@@ -64,6 +64,7 @@ class Weights:
     contrast: float = 12.0        # colour scale of the contrast-sensitive smoothness (chroma)
     bright_floor: float = 0.3     # smoothness across a brightness step keeps at least this share (0.7, 1.0 measured: no better)
     reference_density: float = 60.0   # points / m2 at which colour and smoothness balance as given
+    colour_density_power: float = 1.5  # ... and at another density by (reference_density / density) ** this
     keep_area: float = 300.0      # a road component stays when it covers this many m2 ...
     keep_kerb: float = 0.15       # ... or this share of its boundary edges are kerbs below which it lies
     keep_area_kerb: float = 0.01  # a large component needs this share of kerbs below which it lies too
@@ -214,9 +215,16 @@ def label_road(graph, density: float, w: Weights = Weights(), centroid=None):
                             w.colour_block, w.colour_global)
     # points per area vs edges per boundary length: keep the balance at any density
     balance = np.sqrt(w.reference_density / max(density, 1e-6))
+    # colour per point: 0.24 x (reference / density)^1.5. At 1.0 x sqrt the colour of whole regions
+    # outweighed their kerbs: a sidewalk of mildly road-like colour along a noisy kerb joined the
+    # road, a street of its own asphalt shade or a repair patch left it (uav-road 300 k seed 1 E2
+    # 9.67 %, 4 M seed 8 E1 6.87 %). A flat 0.3 x sqrt lost road where points are sparse and the
+    # road leans on its colour (AHN3 at 13 points/m2 E1 6.75 -> 13.5 %, a held-out street at 20
+    # points/m2 2.5 -> 4.1 %): below the reference the weight grows faster (ACCURACY.md's notes)
+    colour_balance = (w.reference_density / max(density, 1e-6)) ** w.colour_density_power
     # vegetation in sun or shade (the absolute chroma above fades in shadow): ExG of the region's mean
     green = np.clip((excess_green(mean) - w.green_from) / max(w.green_full - w.green_from, 1e-9), 0.0, 1.0)
-    unary = -count * w.colour * balance * llr + count * w.chroma_cost * \
+    unary = -count * w.colour * colour_balance * llr + count * w.chroma_cost * \
         np.maximum(chroma - w.max_chroma, 0.0) / w.max_chroma + count * w.green_cost * balance * green
     road = _min_cut(unary, A, B, C, D, pa, pb, n)
     cut_road = int(count[road].sum())
