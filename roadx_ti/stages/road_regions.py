@@ -220,9 +220,11 @@ class RoadRegions(Stage):
         weights = Weights(**o.weights)
         centroid = None
         if weights.colour_block > 0:
+            # in world coordinates: the blocks are the same whatever local origin a delivery or a
+            # tile's read took
             count = np.maximum(graph.count, 1.0)
             centroid = np.column_stack([np.bincount(graph.label, weights=xyz[:, c], minlength=graph.n_regions)
-                                        / count for c in (0, 1)])
+                                        / count + float(cloud.origin[c]) for c in (0, 1)])
         road_region, facts = label_road(graph, density, weights, centroid=centroid)
         if not road_region.any():
             # no kerb to stand on anywhere: a street without kerbs, taken by its shape in plan
