@@ -129,3 +129,38 @@ def test_a_lane_without_kerbs_is_found_by_its_ribbon_and_a_yard_of_its_grey_is_n
     assert result.info["kerbless_road_points"] > 0
     assert np.sum(road & lane) / np.sum(road | lane) > 0.9, np.sum(road & lane) / np.sum(road | lane)
     assert np.mean(road[yard]) < 0.02
+
+
+def _log_ratio_whole_grid(query, lo_mean, lo_w, up_mean, up_w, bandwidth):
+    """The colour log ratio with the density grids filtered whole (road_graph filters only the
+    samples' box and the filter's radius)."""
+    from scipy.ndimage import gaussian_filter
+    cell = bandwidth / 2.0
+    bins = int(np.ceil(256.0 / cell)) + 1
+
+    def cells(m):
+        return tuple(np.clip(np.floor(np.asarray(m, np.float64) / cell).astype(np.int64), 0, bins - 1).T)
+
+    def density(m, wt):
+        if len(m) == 0 or wt.sum() <= 0:
+            return np.zeros(len(query))
+        grid = np.zeros((bins, bins, bins))
+        np.add.at(grid, cells(m), wt)
+        return (gaussian_filter(grid, sigma=2.0, mode="constant") / wt.sum())[cells(query)]
+    floor = 1e-4 * (2.0 * np.pi * 4.0) ** -1.5
+    return np.clip(np.log((density(lo_mean, lo_w) + floor) / (density(up_mean, up_w) + floor)), -3.0, 3.0)
+
+
+@pytest.mark.parametrize("case", range(6))
+def test_colour_log_ratio_equals_the_whole_grid_filter(case):
+    from roadx_ti.road_graph import _log_ratio_at
+    rng = np.random.default_rng(case)
+    centre, spread = rng.uniform(0, 255, 3), [2.0, 10.0, 60.0][case % 3]
+    query = np.clip(centre + rng.normal(0, 2 * spread, (2000, 3)), -5, 300)
+    lower = np.clip(centre + rng.normal(0, spread, (300, 3)), -5, 300)
+    upper = np.clip(centre + 12 + rng.normal(0, spread, (200 * (case != 4), 3)), -5, 300)
+    if case == 5:
+        lower = np.array([[0.0, 0.0, 0.0], [255.0, 255.0, 255.0]])      # samples at the grid's corners
+    lo_w, up_w = rng.uniform(0, 5, len(lower)), rng.uniform(0, 5, len(upper))
+    expected = _log_ratio_whole_grid(query, lower, lo_w, upper, up_w, 6.0)
+    assert np.array_equal(_log_ratio_at(query, lower, lo_w, upper, up_w, 6.0), expected)
