@@ -51,7 +51,8 @@ def canonical_order(cloud) -> np.ndarray | None:
         # points equal in all three are sorted by their attributes (the same order as sorting the
         # first ties by y, z and the attributes at once: each sort is stable)
         tied, members, group = _tie_groups(order, tie)
-        yz = (_sortable(xyz[members, 1]).astype(np.uint64) << np.uint64(32)) | _sortable(xyz[members, 2]).astype(np.uint64)
+        yz = (_sortable(np.take(xyz[:, 1], members)).astype(np.uint64) << np.uint64(32)) \
+            | _sortable(np.take(xyz[:, 2], members)).astype(np.uint64)
         by_yz = np.lexsort((yz, group))
         members, group, yz = members[by_yz], group[by_yz], yz[by_yz]
         order[tied] = members
