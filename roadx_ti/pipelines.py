@@ -172,7 +172,7 @@ def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class
     if segment_id is None:
         segment_id = np.full(n, -1, np.int32)
     if not processed.all():
-        _transfer_labels(lambda index: cloud.xyz[index if order is None else order[index]],
+        _transfer_labels(lambda index: np.take(cloud.xyz, index if order is None else order[index], axis=0),
                          processed, classification, decided_by, segment_id)
     return PipelineResult(classification, decided_by, segment_id, processed, rows,
                           time.perf_counter() - t_start, dict(ctx.facts[ESTIMATES]), extra_dims)
