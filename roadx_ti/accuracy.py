@@ -298,13 +298,24 @@ NOTES = {
         "the mean raw step of a pair's boundary (z 4 or 6) left seed 67 at E2 11-12 % and lost road "
         "elsewhere (1 M seed 63 E1 24.8-29.5 %).",
         "The colour model learnt block by block (`weights.colour_block=40`, 2026-12-05, with the weights "
-        "above; not adopted): 4 M seed 8 E1 5.67 -> 1.03 % (its side street found), no matrix scene out "
+        "above; first measured alone, then adopted with the kerbless trigger below): 4 M seed 8 E1 5.67 -> 1.03 % (its side street found), no matrix scene out "
         "(4 M median E1 1.79 -> 1.90 %, seed 0 0.83 -> 2.98 %), held-out seeds 40-49 3 -> 2 out (medians "
         "2.26 / 0.79 -> 1.94 / 0.73 %), AHN3 unchanged, tiled against untiled at 100 m (4 M seed 0 through "
         "its LAZ) 99.970 % agree against 99.920 %; but held-out street rural_curved_nokerb E1 3.89 -> "
         "77.0 %: the block models let the cut keep 9,450 points of road, so the kerbless fallback, which "
-        "runs only when the cut keeps none, did not run. Adopting it needs that trigger first. Its "
-        "blocks are now cut in world coordinates (a tile's or a file's local origin no longer shifts them).",
+        "runs only when the cut keeps none, did not run. Its blocks are now cut in world coordinates (a "
+        "tile's or a file's local origin no longer shifts them).",
+        "Kerbless trigger and the block colour model adopted (2026-12-06): the kerbless fallback now also "
+        "runs when kerbs bound less than 5 % of the outline of the road the cut keeps "
+        "(`road_kerb_share` in the summary, `weights.kerbless_below`; measured with the block model on "
+        "every scene at hand: kerbed synthetic scenes 0.19-0.81, kerbed held-out streets 0.14-0.81, AHN3 "
+        "0.42; the kerbless lane 0.008), and `colour_block` is 40 m by default. Against the weights alone: "
+        "matrix 1 -> 0 scenes out (4 M s8 E1 5.67 -> 1.03 %, 1 M s7 4.25 -> 1.59 %, 4 M s0 0.83 -> 2.98 %), "
+        "held-out seeds 40-49 3 -> 2 out (medians 2.26 / 0.79 -> 1.94 / 0.73 %), unseen seeds 60-69 "
+        "6 -> 4 of 20 out (3 M s60 E2 3.01 -> 2.91 %, 3 M s63 3.94 -> 2.60 %; medians 1.78 / 0.71 -> "
+        "1.96 / 0.64 %; those seeds had been run once before, with the weights), held-out streets 18 "
+        "of 21 either way (rural_curved_nokerb 3.89 % again), AHN3 unchanged (one block neighbourhood "
+        "covers it), tiled at 100 m against untiled 99.920 -> 99.970 %; 4 M road_regions 4.45 -> 4.47 s.",
         "The seconds column is wall time in process on the shared 2-core machine; the 2026-12-01 run "
         "shared it with two other jobs, so its times are inflated (benchmarks/RESULTS.md has the timed "
         "A/B).",

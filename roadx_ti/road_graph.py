@@ -11,9 +11,9 @@ binary labelling problem and solved exactly by one minimum cut (scipy's max-flow
   chroma or brightness differ (contrast-sensitive);
 - each region's own term is the log ratio of two colour densities at its mean colour: of the
   regions on the lower sides of kerbs (road samples) and of those on the upper sides (sidewalk
-  samples), weighted by their kerb edges: "road-like" is learnt from the scene itself (optionally
-  block by block, ``colour_block``, so that a street of its own asphalt shade learns its own; off
-  by default: measured mixed, see ACCURACY.md's notes). Strongly
+  samples), weighted by their kerb edges: "road-like" is learnt from the scene itself, block by
+  block (``colour_block``: the kerbs of the 3 x 3 blocks of 40 m around a region, a quarter of the
+  scene's model mixed in), so that a street of its own asphalt shade learns its own. Strongly
   chromatic regions lean to not road, and so do green ones by their excess green of chromatic
   coordinates, which a shadow does not change (a lawn in tree shadow has little absolute chroma).
 
@@ -24,7 +24,8 @@ enclosed by road (markings, shadow patches, manholes) join it.
 
 Streets without kerbs (country lanes between verges, village streets, shared spaces) give the cut
 nothing to stand on: the lower sides of whatever steps the scene has (ditches, building feet)
-teach it no road colour. When it keeps no road at all, ``kerbless_road`` takes the road as what
+teach it no road colour. When it keeps no road at all, or road that kerbs bound along less than
+``kerbless_below`` of its outline (``road_kerb_share``), ``kerbless_road`` takes the road as what
 such a street is in plan: a long ribbon, of a plausible carriageway width, of ground that is
 neither chromatic nor green (asphalt, concrete, setts; verges, fields and gardens are not).
 All energies are integers after scaling, so the cut is deterministic.
@@ -58,7 +59,7 @@ class Weights:
     green_from: float = 0.10      # regions whose excess green 2g - r - b of chromatic coordinates
     green_full: float = 0.25      # ... exceeds this lean to not road, fully from this (vegetation,
     green_cost: float = 2.0       # ... also in shadow, where absolute chroma fades): per point
-    colour_block: float = 0.0     # m: learn the colour term from the kerbs in the 3 x 3 blocks of this
+    colour_block: float = 40.0    # m: learn the colour term from the kerbs in the 3 x 3 blocks of this
                                   # edge around each region (0: one model for the whole scene)
     colour_global: float = 0.25   # ... mixed with this share of the scene's model
     contrast: float = 12.0        # colour scale of the contrast-sensitive smoothness (chroma)
@@ -79,6 +80,8 @@ class Weights:
     ribbon_min_length: float = 4.0    # a ribbon is at least this many times longer than wide ...
     ribbon_min_area: float = 300.0    # ... and covers at least this many m2 (keep_area's scale)
     ribbon_colour: float = 20.0       # colour units: other ribbons of the largest one's colour are road too
+    kerbless_below: float = 0.05      # ... also when kerbs bound less than this share of the outline of
+                                      # the road the cut keeps (kerbed streets measured 0.14-0.81)
 
 
 def kerb_relations(graph, w: Weights):
@@ -246,8 +249,20 @@ def label_road(graph, density: float, w: Weights = Weights(), centroid=None):
     road, absorbed = _absorb_enclosed(graph, road, kerb, w)
     facts = {"regions": int(n), "kerb_edges": float(round(kerb.sum(), 1)),
              "kerb_pairs": int(clear.sum()), "road_points_after_cut": cut_road,
-             "absorbed_points": int(absorbed)}
+             "absorbed_points": int(absorbed), "road_kerb_share": round(road_kerb_share(graph, road, kerb, b_upper), 4)}
     return road, facts
+
+
+def road_kerb_share(graph, road, kerb, b_upper) -> float:
+    """Share of the road's outline (its graph edges to not-road regions) that is kerb edges the
+    road lies below: high where kerbs bound the streets, near 0 where none does."""
+    pa, pb = graph.pa, graph.pb
+    out = road[pa] != road[pb]
+    edges = graph.edges[out].sum()
+    if edges <= 0:
+        return 0.0
+    road_is_lower = np.where(b_upper, road[pa], road[pb])      # b_upper: pb is the higher side
+    return float(kerb[out & road_is_lower].sum() / edges)
 
 
 def _components(n, pa, pb, link):

@@ -60,7 +60,7 @@ def _two_streets():
 def test_a_street_of_its_own_asphalt_shade_learns_its_own_road_colour():
     graph, centroid = _two_streets()
     # one colour model for the scene: street B's asphalt looks like A's sidewalks
-    road, _ = label_road(graph, 60.0, Weights(), centroid=centroid)
+    road, _ = label_road(graph, 60.0, Weights(colour_block=0.0), centroid=centroid)
     assert road.tolist() == [True, False, False, False, False, False]
     # learnt block by block: B's road is the lower side of B's own kerbs
     road, _ = label_road(graph, 60.0, Weights(colour_block=40.0), centroid=centroid)
@@ -164,3 +164,18 @@ def test_colour_log_ratio_equals_the_whole_grid_filter(case):
     lo_w, up_w = rng.uniform(0, 5, len(lower)), rng.uniform(0, 5, len(upper))
     expected = _log_ratio_whole_grid(query, lower, lo_w, upper, up_w, 6.0)
     assert np.array_equal(_log_ratio_at(query, lower, lo_w, upper, up_w, 6.0), expected)
+
+
+def test_road_kerb_share_is_the_share_of_the_road_outline_on_kerbs_it_lies_below():
+    from roadx_ti.road_graph import kerb_relations, road_kerb_share
+    graph = _street([70.0, 70.0, 73.0])         # road 0 below kerbs to 1 and 3, continuous with 2
+    kerb, _, b_upper = kerb_relations(graph, Weights())
+    road = np.array([True, False, False, False])
+    assert road_kerb_share(graph, road, kerb, b_upper) == pytest.approx(240.0 / 300.0)
+    # the sidewalks as "road": they lie above their kerbs, so none of their outline counts
+    assert road_kerb_share(graph, ~road, kerb, b_upper) == 0.0
+    # a road no kerb bounds (the graph of a kerbless lane): 0, and the stage's fallback runs
+    flat = RegionGraph(graph.label, graph.count, graph.colour_sum, graph.pa, graph.pb, graph.edges,
+                       np.zeros(3), np.zeros(3))
+    kerb, _, b_upper = kerb_relations(flat, Weights())
+    assert road_kerb_share(flat, road, kerb, b_upper) == 0.0

@@ -226,10 +226,13 @@ class RoadRegions(Stage):
             centroid = np.column_stack([np.bincount(graph.label, weights=xyz[:, c], minlength=graph.n_regions)
                                         / count + float(cloud.origin[c]) for c in (0, 1)])
         road_region, facts = label_road(graph, density, weights, centroid=centroid)
-        if not road_region.any():
-            # no kerb to stand on anywhere: a street without kerbs, taken by its shape in plan
-            road_region = kerbless_road(graph, xyz[:, :2], spacing, weights)
-            facts["kerbless_road_points"] = int(graph.count[road_region].sum())
+        if not road_region.any() or facts["road_kerb_share"] < weights.kerbless_below:
+            # no kerb to stand on: a street without kerbs, taken by its shape in plan (where the cut
+            # kept some road that no kerb bounds, only when the shape finds one)
+            ribbon = kerbless_road(graph, xyz[:, :2], spacing, weights)
+            if ribbon.any() or not road_region.any():
+                road_region = ribbon
+                facts["kerbless_road_points"] = int(graph.count[road_region].sum())
         is_road = road_region[graph.label]
         if o.boundary_passes and neighbours is None:
             neighbours = rows(*knn(xyz, k))
