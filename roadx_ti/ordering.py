@@ -40,9 +40,6 @@ def canonical_order(cloud) -> np.ndarray | None:
         order = np.argsort(key, kind="quicksort")
         sorted_key = key[order]
         tie = sorted_key[1:] == sorted_key[:-1]
-        if tie.any():
-            tied, members, group = _tie_groups(order, tie)
-            order[tied] = members[np.argsort(group * np.int64(n) + members, kind="quicksort")]
     else:   # blocks beyond 32 bits (points very far apart): sort on every key at once
         order = np.lexsort((x, block))
         tie = (block[order][1:] == block[order][:-1]) & (x[order][1:] == x[order][:-1])
@@ -51,6 +48,8 @@ def canonical_order(cloud) -> np.ndarray | None:
         # points equal in all three are sorted by their attributes (the same order as sorting the
         # first ties by y, z and the attributes at once: each sort is stable)
         tied, members, group = _tie_groups(order, tie)
+        # in input order within each run first (quicksort left them in any; lexsort's already are)
+        members = members[np.argsort(group * np.int64(n) + members, kind="quicksort")]
         yz = (_sortable(np.take(xyz[:, 1], members)).astype(np.uint64) << np.uint64(32)) \
             | _sortable(np.take(xyz[:, 2], members)).astype(np.uint64)
         by_yz = np.lexsort((yz, group))

@@ -256,13 +256,12 @@ def label_road(graph, density: float, w: Weights = Weights(), centroid=None):
 def road_kerb_share(graph, road, kerb, b_upper) -> float:
     """Share of the road's outline (its graph edges to not-road regions) that is kerb edges the
     road lies below: high where kerbs bound the streets, near 0 where none does."""
-    pa, pb = graph.pa, graph.pb
-    out = road[pa] != road[pb]
+    out = road[graph.pa] != road[graph.pb]
     edges = graph.edges[out].sum()
     if edges <= 0:
         return 0.0
-    road_is_lower = np.where(b_upper, road[pa], road[pb])      # b_upper: pb is the higher side
-    return float(kerb[out & road_is_lower].sum() / edges)
+    lower = np.where(b_upper, graph.pa, graph.pb)       # as in label_road and _keep_components
+    return float(kerb[out & road[lower]].sum() / edges)
 
 
 def _components(n, pa, pb, link):
