@@ -20,6 +20,13 @@ Needs roof_growing before it (point_data 'roof_segment') and, for the height tes
   boundary cuts buildings) has no observed width across the cut: with at least 3 points in the
   edge cells and at least a third of min_roof_width across, its width is the larger of its width
   and the length of its cut (the same measure over its points in edge cells).
+- seen through (see_through_depth > 0, data with multi-return pulses only): a segment under which
+  later returns (not the first of their pulse) in no segment lie more than see_through_depth below
+  its top, in the interior of its footprint cells, numbering at least max_see_through of its own
+  points there (and see_through_min_points), is dropped: pulses passed through it, as they pass a
+  tree crown's flat patches to the branches below, and a roof stops them. The rim is left out
+  (eaves split pulses onto walls and the ground beside them); see-through structures over roofs
+  (pergolas, glass) about 2 m above a roof are kept (AHN3's).
 - annexes (annex_reach > 0): a segment dropped only by the area or width test (it passes the
   height test) is kept when it holds at least density * annex_min_area points, at most
   annex_max_vegetation of them vegetation-coloured, and one of its points lies in a plan-view
@@ -101,6 +108,15 @@ class RoofFilterOptions(StageOptions):
     annex_max_vegetation: float = Field(0.3, ge=0, le=1, description="largest fraction of "
                                         "vegetation-coloured points of an annex (unitless): small "
                                         "planar patches in trees beside a roof are not annexes")
+    see_through_depth: float = Field(2.0, ge=0, description="with LiDAR returns: later returns in no "
+                                     "segment more than this far (m) under a segment's interior were "
+                                     "seen through it (pulses pass a tree crown's flat patches down to "
+                                     "its branches; a roof stops them); 0 = off")
+    max_see_through: float = Field(0.1, gt=0, description="a segment is not a roof when the later "
+                                   "returns seen through it number at least this share of its "
+                                   "interior points (unitless: pulses through per pulse on it)")
+    see_through_min_points: int = Field(3, ge=1, description="... and at least this many (a vent or "
+                                        "a skylight lets one or two through)")
     edge_growth: bool = Field(True, description="complete each kept roof out to its boundary: edge "
                               "and eave points whose neighbourhood straddles the roof edge (they fail "
                               "the seed and normal tests) join when they lie on the roof's plane")
@@ -216,6 +232,59 @@ def annex_segments(segment: np.ndarray, xy: np.ndarray, kept: np.ndarray, candid
     return touching & candidate
 
 
+def seen_through(segment: np.ndarray, xyz: np.ndarray, count: int, cell: float, depth: float,
+                 later: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per segment id 0..count-1: (its points in its interior cells, the later returns seen under
+    it there). A segment's cells are the plan cells (side ``cell`` m) holding its points; interior
+    ones have all 8 neighbours among them too (the rim is left out: an eave splits pulses onto the
+    wall and the ground beside it). A later return (``later``, bool per point: not the first
+    return of its pulse) in no segment more than ``depth`` m under the segment's highest point in
+    its cell is seen under it: its pulse passed through the segment, which a roof does not let
+    happen and a tree crown's flat patch does. A cell interior to several segments counts for the
+    one highest there. int64 arrays."""
+    interior_points = np.zeros(count, np.int64)
+    seen = np.zeros(count, np.int64)
+    inside = segment >= 0
+    if not count or not inside.any():
+        return interior_points, seen
+    xy = np.asarray(xyz[:, :2], np.float64)
+    z = np.asarray(xyz[:, 2], np.float64)
+    # cells of the segments' box, one cell of margin: every segment cell's neighbours lie inside it
+    ij = np.floor((xy - xy[inside].min(axis=0)) / cell).astype(np.int64) + 1
+    span = ij[inside].max(axis=0) + 2
+    in_box = (ij >= 0).all(axis=1) & (ij < span).all(axis=1)
+    cell_key = np.where(in_box, ij[:, 0] * span[1] + ij[:, 1], -1)
+    n_cells = int(span[0] * span[1])
+    seg = segment[inside].astype(np.int64)
+    pairs, pair_of = np.unique(seg * n_cells + cell_key[inside], return_inverse=True)
+    pair_of = pair_of.reshape(-1)
+    top = np.full(len(pairs), -np.inf)
+    np.maximum.at(top, pair_of, z[inside])
+    pair_cell, pair_seg = pairs % n_cells, pairs // n_cells
+    interior = np.ones(len(pairs), bool)
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            if dx or dy:
+                wanted = pairs + dx * span[1] + dy
+                at = np.minimum(np.searchsorted(pairs, wanted), len(pairs) - 1)
+                interior &= pairs[at] == wanted
+    interior_points = np.bincount(seg[interior[pair_of]], minlength=count).astype(np.int64)
+    candidates = np.flatnonzero(interior)
+    if not len(candidates):
+        return interior_points, seen
+    # per cell the interior pair with the highest top, sorted by cell
+    order = candidates[np.lexsort((-top[candidates], pair_cell[candidates]))]
+    first = np.ones(len(order), bool)
+    first[1:] = pair_cell[order][1:] != pair_cell[order][:-1]
+    owner = order[first]
+    owner_cell = pair_cell[owner]
+    free = np.flatnonzero((segment < 0) & (cell_key >= 0) & np.asarray(later, bool))
+    at = np.minimum(np.searchsorted(owner_cell, cell_key[free]), len(owner) - 1)
+    under = (owner_cell[at] == cell_key[free]) & (z[free] < top[owner[at]] - depth)
+    seen = np.bincount(pair_seg[owner[at[under]]], minlength=count).astype(np.int64)
+    return interior_points, seen
+
+
 NOISE_SAMPLE = 20_000   # planar roof points the roofs' plane noise is measured on (at most)
 
 
@@ -319,11 +388,18 @@ class RoofFilter(Stage):
                 width = np.where(widened, cut, width)
             narrow = width < o.min_roof_width
             keep_width = ~(narrow & (median_height < o.narrow_max_height))
-        kept = keep_area & keep_height & keep_width
+        opaque = np.ones(count, bool)
+        multi_return = cloud.returns is not None and bool((cloud.returns[:, 1] > 1).any())
+        if o.see_through_depth > 0 and count and multi_return:
+            # points per segment, not cells: both counts scale with the density alike
+            interior, seen = seen_through(segment, cloud.xyz, count, cell, o.see_through_depth,
+                                          cloud.returns[:, 0] >= 2)
+            opaque = ~((seen >= o.see_through_min_points) & (seen >= o.max_see_through * interior))
+        kept = keep_area & keep_height & keep_width & opaque
         annexes = 0
         if o.annex_reach > 0 and count and kept.any():
             # dropped by the area or width test only, large enough, not mostly foliage-coloured
-            candidate = keep_height & ~kept & (sizes >= area_density * o.annex_min_area)
+            candidate = keep_height & opaque & ~kept & (sizes >= area_density * o.annex_min_area)
             vegetation = ctx.point_data.get("vegetation")
             if vegetation is not None:
                 inside = segment >= 0
@@ -374,6 +450,7 @@ class RoofFilter(Stage):
                 "dropped_by_area": int((~keep_area).sum()),
                 "dropped_by_height": int((keep_area & ~keep_height).sum()),
                 "dropped_by_width": int((keep_area & keep_height & ~keep_width).sum()),
+                "dropped_as_seen_through": int((keep_area & keep_height & keep_width & ~opaque).sum()),
                 "cut_by_data_edge": cut_segments,
                 "annexes_kept": annexes, "attached_points": attached,
                 "footprint_cell_m": round(cell, 4), "wall_reach_m": round(wall_reach, 4),
