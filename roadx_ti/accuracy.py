@@ -488,6 +488,24 @@ NOTES = {
         "mostly roof (357 / 1,127; thinned 113 / 105) and above 50 % too (362 / 2,314: small pieces of roof "
         "rims and superstructures, whose pulses split at the edges): no threshold on the share separates "
         "crowns from roofs, so no component rule was made of it.",
+        "Seen through (2026-12-06, f01433a, `roof_filter.see_through_depth` 2 m, `max_see_through` 0.1; "
+        "files with multi-return pulses only): the largest false roof of the six-tile block was one tall "
+        "tree on tile 77050_627755 (x 4-10 m, y 33-41 m: ten flat patches of its crown 6-20 m up, 2,800 "
+        "points, each passing the area test). Pulses pass such patches down to the branches (later "
+        "returns below), a roof stops them; a segment is dropped when later returns in no segment lie "
+        "more than 2 m under its top in its interior footprint cells (the rim left out: eaves split "
+        "pulses onto walls), as many as a tenth of its own points there. Kappa 77050_627755 0.8762 -> "
+        "0.9133, merged block 0.9025 -> 0.9103, AHN3 0.9463 -> 0.9458 (7 points of a roof), every other "
+        "file and the synthetic scenes (no multi-return pulses) unchanged. Measured and not adopted: every "
+        "point under a segment rather than later returns only (AHN3 0.9369: facades under mansard rims); "
+        "the vegetation cue's points instead (no gain: the branches below are later returns, which the "
+        "returns cue does not flag); shares of cells instead of points (the share depends on the cell: "
+        "0.25 / 0.3 / 0.5 m cells gave merged 0.9034 / 0.9097 / 0.9061); no erosion of the rim (merged "
+        "0.9126, AHN3 0.9365); depth 1-1.5 m (77050_627760 0.9194 -> 0.9307, merged 0.9109, but AHN3 "
+        "0.9458 -> 0.940: see-through structures about 2 m over flat roofs there, pergolas or glass, "
+        "that its truth calls building). Hedges (the other large false roof, 2-3.5 m high) are not "
+        "caught: they are dense (few later returns under them), and neither segment curvature nor the "
+        "inscribed width separates them from the low roofs of the same tiles.",
     ],
 }
 
