@@ -164,10 +164,11 @@ class RoofFilterOptions(StageOptions):
                                                 "what lies further out is a hedge or a bush by the wall)")
     surface_tol: float = Field(0.5, ge=0, description="a point within this height (m) of its roof "
                                "cell's z range lies on the roof surface and joins whatever its colour")
-    superstructure_height: float = Field(1.5, ge=0, description="a point inside a footprint within this "
+    superstructure_height: float = Field(3.0, ge=0, description="a point inside a footprint within this "
                                          "height (m) of its roof cell's z range joins when only the returns "
-                                         "cue calls it foliage (chimneys, vents, railings, roof units split "
-                                         "pulses as foliage does; a colour cue still keeps it off)")
+                                         "cue calls it foliage (chimneys, vents, railings, roof units, stair "
+                                         "and lift housings up to a storey high split pulses as foliage "
+                                         "does; a colour cue still keeps it off)")
 
 
 def occupied_density(xy: np.ndarray, cell: float) -> float:
