@@ -148,6 +148,17 @@ NOTES = {
         "the hashed R1 sample keeps for about 5 % of them (a 1 cm hash cell against coordinates moved "
         "by up to 0.5 mm). So the gap to 99.5 % is jitter of the road's edge by about a point spacing "
         "(and a few region flips of 100-300 points), not whole streets.",
+        "Where the invariance gap comes from (2026-12-06, at 1984a59, 300 k seed 2): R6 alone, given its "
+        "own working set (127,320 points) and the same set with coordinates rounded to 1 mm (same points, "
+        "same order), agrees on 99.74 % of its labels (1 cm: 99.44 %), run to run on the same input 100 %; "
+        "its region partition differs for 9 % of the points (a region's best match in the other run), "
+        "the cut on them agrees on 99.72 %, boundary votes and the surface test add nothing (off: 1 mm / "
+        "1 cm / half density 99.41 / 99.24 / 99.20 % against 99.43 / 99.27 / 99.27 % with them). Run the "
+        "merge levels to the end (`settle` 0.001 / 0.0002: 99.46 / 99.31 / 99.30 %) or merge small regions "
+        "(min_region_points 30: 98.83 % at 1 mm) did not help: the region merge itself, most similar pairs "
+        "first over a kNN graph and step evidence that move with millimetres, is where the jitter starts; "
+        "whole-pipeline disagreements are 104-153 small clusters (median region 18-37 points), 15-23 "
+        "whole-region flips.",
         "300 k seed 7 (E1 5.26 %): most of the missed road is a lighter repair patch in the parking "
         "lane (region grey 62-68 against the road's 51) at the road's height with no kerb between it "
         "and the road; the scene's colour model (its kerb samples include lawns) gives it llr -0.79 per "
