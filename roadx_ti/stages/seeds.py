@@ -37,10 +37,11 @@ class RoofSeedsOptions(StageOptions):
                                "neighbourhood), and ALS density varies 2x between single and "
                                "overlapping strips (radius x sqrt 2); hedges and wall tops reach farther "
                                "(3 radii measured: the densest IGN tile lost roof, E1 3.4 -> 4.7 %)")
-    # 'auto' is not the default: at 2 points/m2 (the reviewed IGN tile thinned) 4 radii are 6.5 m
-    # and a rejected hedge-like candidate became roof (kappa 0.993 -> 0.959); 2 or 3 radii did the
-    # same; a fixed 2 m rejects it. At those densities d_max cannot tell a 1-2 m wide hedge from a
-    # roof's rim, so a metric bound is kept until a shape test replaces it.
+    # configs/roof_als.yaml runs 'auto' (2026-12-06): a fixed 2 m lost the narrow roofs of sparse
+    # surveys (AHN3 thinned to 5 points/m2: kappa 0.866 -> 0.905 with 'auto'); its price is one small
+    # rejected candidate (34 points) that becomes roof on the reviewed IGN tile thinned to 2 points/m2
+    # (0.992 -> 0.957): at those densities d_max cannot tell a 1-2 m wide hedge from a roof's rim
+    # (2 or 3 radii, or a fixed 2.6 m, take it too).
     alpha: float | None = Field(1.0, ge=0, description="gradient test G_z <= alpha * max(G_x, G_y) "
                                 "over the neighbourhood extent (unitless; 1 admits pitches up to "
                                 "about 45 degrees); null = off")
