@@ -531,6 +531,21 @@ NOTES = {
         "gave merged 0.9122 too, 3.5 m 0.9124 (77050_627760 0.9152). Measured and not adopted: low walls "
         "0.5-1 m above the ground joining where attached wall points lie within 0.1-0.3 m in plan above "
         "them (merged block: +317 / -140 to +604 / -441 true / false points, about +0.002).",
+        "Other densities than the report's (2026-12-06; `accuracy.thin_to_density`, scored on the kept "
+        "points; kappa at full / 10 / 5 / 2 points/m2), at bb71fa4 -> after the seen-through and storey "
+        "rules (1984a59) -> with `roof_seeds.r_max: auto` (the default since that day): merged IGN block "
+        "0.9025 / 0.9133 / 0.8885 / 0.8873 -> 0.9122 / 0.9152 / 0.8901 / 0.8891 -> 0.9122 / 0.9150 / "
+        "0.8911 / 0.8913; AHN3 0.9463 / 0.9171 / 0.8599 / 0.8499 -> 0.9502 / 0.9159 / 0.8663 / 0.8542 -> "
+        "0.9502 / 0.9159 / 0.9048 / 0.8584; the reviewed tile 0.9994 / 0.9986 / 1.0000 / 0.9921 throughout, "
+        "then 0.9566 at 2 points/m2 with auto (one rejected candidate of 34 points, class 20, becomes roof: "
+        "a fixed 2.6 or 3 m takes it too); ign_870000 within 0.0003. The fixed 2 m r_max lost the narrow "
+        "roofs of the sparse AHN3 city block (k = 10 neighbours of a 5 points/m2 facet reach past 2 m); "
+        "auto is 4 radii of the k-neighbourhood at the measured first-return spacing (about 1.3 m at "
+        "IGN's 30 points/m2, where nothing changes, 3.2 m at 5). AHN3 still falls from 0.95 to 0.86-0.90 "
+        "below 10 points/m2: sparse ALS (issue 16's point 2) is not solved. On the synthetic matrix "
+        "(about 15 points/m2, auto 1.8-1.9 m against 2 m) every scene loses 0.0001-0.0020 (medians "
+        "300 k / 1 M / 4 M 0.9676 / 0.9661 / 0.9662 -> 0.9665 / 0.9650 / 0.9655, worst 1 M seed 1 0.9529 "
+        "-> 0.9517); the report's thinned IGN block 0.8823 -> 0.8855.",
     ],
 }
 
