@@ -546,6 +546,13 @@ NOTES = {
         "(about 15 points/m2, auto 1.8-1.9 m against 2 m) every scene loses 0.0001-0.0020 (medians "
         "300 k / 1 M / 4 M 0.9676 / 0.9661 / 0.9662 -> 0.9665 / 0.9650 / 0.9655, worst 1 M seed 1 0.9529 "
         "-> 0.9517); the report's thinned IGN block 0.8823 -> 0.8855.",
+        "Split-pulse walls (2026-12-06, measured, not adopted): footprint completion's wall rule (points "
+        "below a kept roof's edge) takes only points no vegetation cue flags; letting the returns-only "
+        "ones with a solid neighbour join there too (as on the roof surface) raised AHN3, whose truth "
+        "labels walls, at full / 10 / 5 / 2 points/m2 0.9502 / 0.9159 / 0.9048 / 0.8584 -> 0.9586 / "
+        "0.9273 / 0.9201 / 0.8811, but cost every IGN tile but one (merged block 0.9122 -> 0.9101: 438 "
+        "wall points gained, 844 hedge and crown points by walls taken; ign_870000 0.7656 -> 0.7636): "
+        "the two truths' wall conventions pull apart.",
     ],
 }
 
