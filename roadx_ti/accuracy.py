@@ -553,6 +553,13 @@ NOTES = {
         "0.9273 / 0.9201 / 0.8811, but cost every IGN tile but one (merged block 0.9122 -> 0.9101: 438 "
         "wall points gained, 844 hedge and crown points by walls taken; ign_870000 0.7656 -> 0.7636): "
         "the two truths' wall conventions pull apart.",
+        "roof_seeds.k (2026-12-06, measured, kept at 10): k 6 / 8 / 10 / 12, merged block 0.9343 / 0.9198 / "
+        "0.9122 / 0.9173, 77050_627755 0.9736 / 0.8997 / 0.9143 / 0.9123 (one tall tree's crown patches "
+        "in and out), thinned block 0.8887 / 0.8992 / 0.8855 / 0.8945, reviewed tile thinned to 3 "
+        "points/m2 0.9564 / 0.9504 / 0.9899 / 0.9899, AHN3 0.9487 / 0.9570 / 0.9502 / 0.9580; at 10 / 5 / "
+        "2 points/m2 k 12 against 10 moves the merged block -0.009 / +0.001 / +0.014, AHN3 -0.008 / "
+        "+0.014 / -0.012, ign_870000 at 2 points/m2 -0.022. Not monotonic in k and of either sign per "
+        "file: single objects flip, so no k was chosen from these.",
     ],
 }
 
