@@ -559,7 +559,12 @@ NOTES = {
         "points/m2 0.9564 / 0.9504 / 0.9899 / 0.9899, AHN3 0.9487 / 0.9570 / 0.9502 / 0.9580; at 10 / 5 / "
         "2 points/m2 k 12 against 10 moves the merged block -0.009 / +0.001 / +0.014, AHN3 -0.008 / "
         "+0.014 / -0.012, ign_870000 at 2 points/m2 -0.022. Not monotonic in k and of either sign per "
-        "file: single objects flip, so no k was chosen from these.",
+        "file: single objects flip, so no k was chosen from these. The seen-through rule counting later "
+        "returns in other segments too (stacked crown patches): merged block 0.9122 -> 0.9145, ign_870000 "
+        "0.7656 -> 0.7685, but AHN3 0.9502 -> 0.9463 (the flat roofs under its see-through structures are "
+        "segments), not adopted; with k 8 the same gave merged 0.9359 and 77050_627755 0.9751 (its tall "
+        "tree caught) but AHN3 0.9424 and the thinned reviewed tile 0.9504: a combination picked on these "
+        "files, not taken.",
     ],
 }
 
