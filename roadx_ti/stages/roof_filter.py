@@ -245,22 +245,29 @@ def seen_through(segment: np.ndarray, xyz: np.ndarray, count: int, cell: float, 
     one highest there. int64 arrays."""
     interior_points = np.zeros(count, np.int64)
     seen = np.zeros(count, np.int64)
-    inside = segment >= 0
-    if not count or not inside.any():
+    segment = np.asarray(segment)
+    in_segment = np.flatnonzero(segment >= 0)
+    if not count or not len(in_segment):
         return interior_points, seen
-    xy = np.asarray(xyz[:, :2], np.float64)
-    z = np.asarray(xyz[:, 2], np.float64)
+    # only the segments' points and the later returns in no segment are read (memory: a few
+    # per-point arrays of these, not of the whole cloud)
+    free = np.flatnonzero((segment < 0) & np.asarray(later, bool))
+    xyz = np.asarray(xyz)
     # cells of the segments' box, one cell of margin: every segment cell's neighbours lie inside it
-    ij = np.floor((xy - xy[inside].min(axis=0)) / cell).astype(np.int64) + 1
-    span = ij[inside].max(axis=0) + 2
-    in_box = (ij >= 0).all(axis=1) & (ij < span).all(axis=1)
-    cell_key = np.where(in_box, ij[:, 0] * span[1] + ij[:, 1], -1)
+    lo = xyz[in_segment, :2].astype(np.float64).min(axis=0)
+
+    def cells(rows):
+        return np.floor((xyz[rows, :2].astype(np.float64) - lo) / cell).astype(np.int64) + 1
+
+    ij = cells(in_segment)
+    span = ij.max(axis=0) + 2
     n_cells = int(span[0] * span[1])
-    seg = segment[inside].astype(np.int64)
-    pairs, pair_of = np.unique(seg * n_cells + cell_key[inside], return_inverse=True)
+    seg = segment[in_segment].astype(np.int64)
+    pairs, pair_of = np.unique(seg * n_cells + ij[:, 0] * span[1] + ij[:, 1], return_inverse=True)
+    del ij
     pair_of = pair_of.reshape(-1)
     top = np.full(len(pairs), -np.inf)
-    np.maximum.at(top, pair_of, z[inside])
+    np.maximum.at(top, pair_of, xyz[in_segment, 2].astype(np.float64))
     pair_cell, pair_seg = pairs % n_cells, pairs // n_cells
     interior = np.ones(len(pairs), bool)
     for dx in (-1, 0, 1):
@@ -279,9 +286,12 @@ def seen_through(segment: np.ndarray, xyz: np.ndarray, count: int, cell: float, 
     first[1:] = pair_cell[order][1:] != pair_cell[order][:-1]
     owner = order[first]
     owner_cell = pair_cell[owner]
-    free = np.flatnonzero((segment < 0) & (cell_key >= 0) & np.asarray(later, bool))
-    at = np.minimum(np.searchsorted(owner_cell, cell_key[free]), len(owner) - 1)
-    under = (owner_cell[at] == cell_key[free]) & (z[free] < top[owner[at]] - depth)
+    ij = cells(free)
+    in_box = (ij >= 0).all(axis=1) & (ij < span).all(axis=1)
+    free, ij = free[in_box], ij[in_box]
+    free_cell = ij[:, 0] * span[1] + ij[:, 1]
+    at = np.minimum(np.searchsorted(owner_cell, free_cell), len(owner) - 1)
+    under = (owner_cell[at] == free_cell) & (xyz[free, 2].astype(np.float64) < top[owner[at]] - depth)
     seen = np.bincount(pair_seg[owner[at[under]]], minlength=count).astype(np.int64)
     return interior_points, seen
 
