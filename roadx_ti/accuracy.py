@@ -650,6 +650,9 @@ def datasets(task: str, sizes=ROOF_SIZES, seeds=ROOF_SEEDS):
         # scored as it comes; no roof setting was chosen on it
         rows.append(("AHN3 ahn3_2386_9702 (Netherlands, no colour)",
                      lambda: io.read(SHARED_DATA / "road" / "ahn3_2386_9702_roads.laz"), [6], "roof_als.yaml"))
+        rows.append((f"AHN3 ahn3_2386_9702 thinned to {THIN_DENSITY:g} points/m2 (no colour)",
+                     lambda: thin_to_density(io.read(SHARED_DATA / "road" / "ahn3_2386_9702_roads.laz"), THIN_DENSITY),
+                     [6], "roof_als.yaml"))
         for points in sizes:
             for seed in seeds:
                 rows.append((f"synthetic als-roof {_size_name(points)} seed {seed}",
