@@ -76,16 +76,28 @@ class Cloud:
         total = nir + red
         return np.where(total > 0, (nir - red) / np.maximum(total, 1.0), 0.0).astype(np.float32)
 
-    def penetrated(self) -> np.ndarray | None:
-        """bool (n,): the point is an earlier return of a pulse that went on (return number below
-        the number of returns): foliage, hedges and roof edges, rarely roof interiors. None
-        without return information, or when no pulse has more than one return."""
+    def _split_pulses(self):
+        """(return number, number of returns) per point; None without return information, or when
+        no pulse has more than one return (nothing to tell apart)."""
         if self.returns is None:
             return None
         number, count = self.returns[:, 0], self.returns[:, 1]
         if not (count > 1).any():
             return None
-        return number < count
+        return number, count
+
+    def penetrated(self) -> np.ndarray | None:
+        """bool (n,): the point is an earlier return of a pulse that went on (return number below
+        the number of returns): foliage, hedges and roof edges, rarely roof interiors. None as
+        _split_pulses."""
+        pulses = self._split_pulses()
+        return None if pulses is None else pulses[0] < pulses[1]
+
+    def later_returns(self) -> np.ndarray | None:
+        """bool (n,): the point is not the first return of its pulse (something above it returned
+        part of the pulse first). None as _split_pulses."""
+        pulses = self._split_pulses()
+        return None if pulses is None else pulses[0] >= 2
 
     def world_xyz(self) -> np.ndarray:
         """float64 world coordinates (exact for LAS input: taken from the scaled integers)."""

@@ -67,6 +67,7 @@ from pydantic import Field
 
 from roadx_ti.cloud import Cloud
 from roadx_ti.segments import segment_medians
+from roadx_ti.sorted_keys import find
 from roadx_ti.stages.base import (CLASS_BUILDING, CLASS_OTHER, DATA_EDGE, Stage, StageContext, StageOptions,
                                   StageResult, estimate, spacing_cell, survey_spacing)
 
@@ -254,12 +255,14 @@ def seen_through(segment: np.ndarray, xyz: np.ndarray, count: int, cell: float, 
     free = np.flatnonzero((segment < 0) & np.asarray(later, bool))
     xyz = np.asarray(xyz)
     # cells of the segments' box, one cell of margin: every segment cell's neighbours lie inside it
-    lo = xyz[in_segment, :2].astype(np.float64).min(axis=0)
+    xy = xyz[in_segment, :2].astype(np.float64)
+    lo = xy.min(axis=0)
 
-    def cells(rows):
-        return np.floor((xyz[rows, :2].astype(np.float64) - lo) / cell).astype(np.int64) + 1
+    def cells(xy):
+        return np.floor((xy - lo) / cell).astype(np.int64) + 1
 
-    ij = cells(in_segment)
+    ij = cells(xy)
+    del xy
     span = ij.max(axis=0) + 2
     n_cells = int(span[0] * span[1])
     seg = segment[in_segment].astype(np.int64)
@@ -273,9 +276,7 @@ def seen_through(segment: np.ndarray, xyz: np.ndarray, count: int, cell: float, 
     for dx in (-1, 0, 1):
         for dy in (-1, 0, 1):
             if dx or dy:
-                wanted = pairs + dx * span[1] + dy
-                at = np.minimum(np.searchsorted(pairs, wanted), len(pairs) - 1)
-                interior &= pairs[at] == wanted
+                interior &= find(pairs, pairs + dx * span[1] + dy)[1]
     interior_points = np.bincount(seg[interior[pair_of]], minlength=count).astype(np.int64)
     candidates = np.flatnonzero(interior)
     if not len(candidates):
@@ -286,12 +287,12 @@ def seen_through(segment: np.ndarray, xyz: np.ndarray, count: int, cell: float, 
     first[1:] = pair_cell[order][1:] != pair_cell[order][:-1]
     owner = order[first]
     owner_cell = pair_cell[owner]
-    ij = cells(free)
+    ij = cells(xyz[free, :2].astype(np.float64))
     in_box = (ij >= 0).all(axis=1) & (ij < span).all(axis=1)
     free, ij = free[in_box], ij[in_box]
     free_cell = ij[:, 0] * span[1] + ij[:, 1]
-    at = np.minimum(np.searchsorted(owner_cell, free_cell), len(owner) - 1)
-    under = (owner_cell[at] == free_cell) & (xyz[free, 2].astype(np.float64) < top[owner[at]] - depth)
+    at, hit = find(owner_cell, free_cell)
+    under = hit & (xyz[free, 2].astype(np.float64) < top[owner[at]] - depth)
     seen = np.bincount(pair_seg[owner[at[under]]], minlength=count).astype(np.int64)
     return interior_points, seen
 
@@ -400,11 +401,10 @@ class RoofFilter(Stage):
             narrow = width < o.min_roof_width
             keep_width = ~(narrow & (median_height < o.narrow_max_height))
         opaque = np.ones(count, bool)
-        multi_return = cloud.returns is not None and bool((cloud.returns[:, 1] > 1).any())
-        if o.see_through_depth > 0 and count and multi_return:
+        later = cloud.later_returns() if o.see_through_depth > 0 and count else None
+        if later is not None:
             # points per segment, not cells: both counts scale with the density alike
-            interior, seen = seen_through(segment, cloud.xyz, count, cell, o.see_through_depth,
-                                          cloud.returns[:, 0] >= 2)
+            interior, seen = seen_through(segment, cloud.xyz, count, cell, o.see_through_depth, later)
             opaque = ~((seen >= o.see_through_min_points) & (seen >= o.max_see_through * interior))
         kept = keep_area & keep_height & keep_width & opaque
         annexes = 0
