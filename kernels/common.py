@@ -37,6 +37,17 @@ def ndarray(dtype, shape):
     return ti.ndarray(dtype, shape)
 
 
+def zeros(dtype, shape):
+    """A Taichi ndarray of zeros. Filled from numpy rather than by ``Ndarray.fill``, whose kernel
+    takes the value as i32: for 8-bit arrays its first compile prints a precision TaichiWarning
+    on the CLI's stderr."""
+    if not isinstance(dtype, type(ti.f32)):
+        dtype = _NP_TO_TI[np.dtype(dtype)]
+    out = ti.ndarray(dtype, shape)
+    out.from_numpy(np.zeros(shape, _TI_TO_NP[dtype]))
+    return out
+
+
 def as_ndarray(a, dtype=None):
     """Return ``a`` as a Taichi ndarray: ndarrays pass through, numpy arrays are copied once."""
     if is_ndarray(a):

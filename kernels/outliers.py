@@ -15,7 +15,7 @@ Conventions:
 
 import numpy as np
 
-from .common import INT32_MAX, f32_order_key, is_ndarray, kernel_array, length, like_input, ndarray, to_numpy
+from .common import INT32_MAX, f32_order_key, is_ndarray, kernel_array, length, like_input, ndarray, to_numpy, zeros
 from .grid_min import _fill_i32, plan_cells
 from .neighbors import knn_mean_distance
 from .taichi_compat import ti
@@ -150,8 +150,7 @@ def low_noise(xyz, cell: float = 10.0, threshold: float = 1.0, max_cluster: int 
     if n == 0:
         return np.zeros(0, np.uint8)
     pts = kernel_array(xyz, "float32")
-    noise = ndarray(ti.u8, (n,))
-    noise.fill(0)
+    noise = zeros(ti.u8, (n,))
     cell_of, cells = plan_cells(pts, cell, origin)
     cell_of = kernel_array(cell_of, "int32")
     key = ndarray(ti.i32, (cells,))

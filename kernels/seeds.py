@@ -63,7 +63,7 @@ import numpy as np
 from .taichi_compat import ti
 
 from .common import (INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, is_ndarray, kernel_array, length,
-                     like_input, ndarray, output_array, to_numpy)
+                     like_input, ndarray, output_array, to_numpy, zeros)
 
 FOOTPRINT_CELLS_PER_POINT = 4
 FOOTPRINT_MIN_CELLS = 1 << 20
@@ -277,8 +277,7 @@ def grow_roof_segments(knn_indices, edge_ok, seed, *, curvature=None, expand_cur
     expandable = ndarray(ti.u8, (n,))
     _expandable(curv, seed_nd, act, int(use_curv), float(expand_curvature_max or 0.0), expandable)
     component = kernel_array(connected_components(knn, edge_ok=edges, active=expandable), "int32")
-    seeded = ndarray(ti.u8, (n,))
-    seeded.fill(0)
+    seeded = zeros(ti.u8, (n,))
     _mark_seeded(component, seed_nd, seeded)
     core = ndarray(ti.i32, (n,))
     _roof_cores(component, seeded, expandable, act, core, label)

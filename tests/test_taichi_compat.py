@@ -213,3 +213,33 @@ def test_a_kernels_first_call_lets_its_arrays_go(ti_arch):
         if collecting:
             gc.enable()
     assert taichi_compat.RELEASES_COMPILE_ARGUMENTS
+
+
+def test_no_fill_of_8_bit_arrays_in_the_pipelines(monkeypatch):
+    """Ndarray.fill compiles its kernel with the value as i32: on an 8-bit array that first compile
+    prints a TaichiWarning ('Assign may lose precision: u8 <- i32') on the CLI's stderr, on every
+    fresh machine. The road and roof pipelines zero such arrays with kernels.common.zeros instead."""
+    import numpy as np
+
+    from roadx_ti import config, pipelines, synthetic
+    from roadx_ti.kernels.common import zeros
+    from roadx_ti.kernels.taichi_compat import NDARRAY_TYPE, ti
+    from roadx_ti.stages.base import StageContext
+    from tests.conftest import switch_backend
+
+    switch_backend("cpu")
+    filled = []
+    fill = NDARRAY_TYPE.fill
+
+    def recording_fill(self, value):
+        filled.append(self.dtype)
+        return fill(self, value)
+    monkeypatch.setattr(NDARRAY_TYPE, "fill", recording_fill)
+    for name, kind in (("road_uav.yaml", "uav-road"), ("roof_als.yaml", "als-roof")):
+        cfg = config.load(REPO / "configs" / name)
+        scene = synthetic.generate(kind, 20_000, seed=1)
+        pipelines.run(scene, pipelines.build_stages(cfg.stage_list()), ctx=StageContext(seed=cfg.seed))
+    assert filled, "the pipelines fill no ndarray: the check would pass vacuously"
+    assert not [d for d in filled if d in (ti.u8, ti.i8)], filled
+    z = zeros(ti.u8, (5,)).to_numpy()
+    assert z.dtype == np.uint8 and not z.any()
