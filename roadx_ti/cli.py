@@ -418,11 +418,6 @@ def _run_tiled(cfg, out: Path, args) -> int:
         raise config.ConfigError("config error: input: tiled runs read files; give input.paths or --input")
     if cfg.output.dtm not in (None, False):
         log.warning("output.dtm: tiled runs write no DTM (each tile has its own cloth); run untiled for one")
-    from roadx_ti.stages import stage_class
-    unwritten = [key for name, _ in cfg.pipeline_stages() for key in stage_class(name).writes]
-    if unwritten:
-        log.warning("tiled runs do not write %s yet (stage outputs of untiled runs); run untiled for them",
-                    ", ".join(unwritten))
     if cfg.output.mode == "merged":
         from roadx_ti.io.copc import is_copc_path
         if is_copc_path(out):

@@ -83,3 +83,38 @@ def test_output_carries_the_dimension_and_labels_do_not_change(tmp_path):
     assert np.isnan(hag[ground]).all() and np.isfinite(hag[~ground]).mean() > 0.99
     building = np.asarray(runs["hag"].classification) == 6
     assert np.nanmedian(hag[building]) > 2.5       # roofs stand above the ground
+
+
+def test_tiled_runs_carry_the_dimension_as_untiled_runs_do(tmp_path):
+    """A tiled run writes the stage's heights too (each point's from its core tile), equal to the
+    untiled run's where the two runs' cloths agree, and NaN where no tile's pipeline saw a point;
+    in one merged LAZ and in per-file outputs."""
+    scene = tmp_path / "scene.laz"
+    assert cli.main(["synth", "--kind", "als-roof", "--points", "20000", "--seed", "2", "-o", str(scene)]) == 0
+    path = tmp_path / "hag.yaml"
+    path.write_text(textwrap.dedent("""\
+        pipeline: roof
+        backend: cpu
+        output: {report_png: false}
+        stages: [{cloth_ground: {}}, {roof_seeds: {}}, {roof_growing: {}}, {height_above_ground: {}}, {roof_filter: {}}]
+        """))
+    runs = {}
+    for name, extra in (("untiled", []), ("tiled", ["--tile-size", "40"])):
+        out = tmp_path / f"{name}.laz"
+        assert cli.main(["run", str(path), "--input", str(scene), "--output", str(out), "--quiet", *extra]) == 0
+        runs[name] = laspy.read(out)
+    per_file = tmp_path / "per_file"
+    assert cli.main(["run", str(path), "--input", str(scene), "--output", str(per_file), "--quiet",
+                     "--tile-size", "40", "--set", "output.mode=per-file"]) == 0
+    runs["per_file"] = laspy.read(per_file / "scene.laz")
+    base = np.asarray(runs["untiled"]["height_above_ground"])
+    for name in ("tiled", "per_file"):
+        hag = np.asarray(runs[name]["height_above_ground"])
+        assert hag.dtype == np.float32 and len(hag) == len(base)
+        same_class = np.asarray(runs[name].classification) == np.asarray(runs["untiled"].classification)
+        assert same_class.mean() > 0.99
+        both = np.isfinite(hag) & np.isfinite(base)
+        assert (np.isfinite(hag) == np.isfinite(base))[same_class].mean() > 0.99
+        assert np.mean(np.abs(hag[both] - base[both]) < 0.01) > 0.99, name
+    np.testing.assert_array_equal(np.asarray(runs["tiled"]["height_above_ground"]),
+                                  np.asarray(runs["per_file"]["height_above_ground"]))

@@ -66,8 +66,10 @@ def reconcile_segments(plan: TilePlan, results: dict) -> dict:
 class _Merge:
     """Hands out each input point's labels from its core tile, in file order, and keeps counts."""
 
-    def __init__(self, plan: TilePlan, results: dict, files: list[CatalogFile], truth_classes, target: int):
+    def __init__(self, plan: TilePlan, results: dict, files: list[CatalogFile], truth_classes, target: int,
+                 extra_names=()):
         self.plan, self.results, self.files = plan, results, files
+        self.extra_names = tuple(extra_names)     # the stages' point outputs (Stage.writes)
         self.cursor = {}
         self.truth_classes, self.target = truth_classes, target
         self.class_counts = np.zeros(256, np.int64)
@@ -81,6 +83,8 @@ class _Merge:
             raise TileError(f"{self.files[k].path}: {int((tiles < 0).sum())} points lie outside the "
                             "header bounds, so no tile read them; fix the header (e.g. pdal translate)")
         out = (np.empty(n, np.uint8), np.empty(n, np.uint8), np.empty(n, np.int32), np.empty(n, bool))
+        # NaN where a tile's pipeline did not see a point (as in an untiled run's output)
+        extra = {name: np.full(n, np.nan, np.float32) for name in self.extra_names}
         order = np.argsort(tiles, kind="stable")
         starts = np.flatnonzero(np.r_[True, np.diff(tiles[order]) != 0])
         ends = np.r_[starts[1:], n]
@@ -94,13 +98,16 @@ class _Merge:
             idx = order[s:e]
             for dst, src in zip(out, (part.classification, part.decided_by, part.segment_id, part.processed)):
                 dst[idx] = src[c:c + e - s]
+            for name, dst in extra.items():
+                if name in part.extra:
+                    dst[idx] = part.extra[name][c:c + e - s]
             self.cursor[(t, k)] = c + e - s
         self.class_counts += np.bincount(out[0], minlength=256)
         if input_classes is not None and self.truth_classes:
             from roadx_ti.metrics import class_mask
             self.truth.append(class_mask(input_classes, self.truth_classes))
             self.pred.append(out[0] == self.target)
-        return out
+        return out + (extra,)
 
     def check_file(self, k: int, seen: int) -> None:
         """Every point of file k was handed out exactly once and every core point returned used."""
@@ -123,11 +130,12 @@ def _write_las_stream(out: Path, file_ids, merge: _Merge, processed_only: bool) 
     from roadx_ti.io import las_write as io_las
 
     def labels(i, chunk):
-        cls, dec, seg, proc = merge.labels(file_ids[i], np.asarray(chunk.x), np.asarray(chunk.y),
-                                           np.asarray(chunk.classification))
-        return cls, {"roadx_label": dec, "segment_id": seg}, proc if processed_only else None
+        cls, dec, seg, proc, extra = merge.labels(file_ids[i], np.asarray(chunk.x), np.asarray(chunk.y),
+                                                  np.asarray(chunk.classification))
+        return cls, {"roadx_label": dec, "segment_id": seg, **extra}, proc if processed_only else None
 
-    empty = (np.zeros(0, np.uint8), {"roadx_label": np.zeros(0, np.uint8), "segment_id": np.zeros(0, np.int32)},
+    empty = (np.zeros(0, np.uint8), {"roadx_label": np.zeros(0, np.uint8), "segment_id": np.zeros(0, np.int32),
+                                     **{name: np.zeros(0, np.float32) for name in merge.extra_names}},
              np.zeros(0, bool) if processed_only else None)
     return io_las.write_las_stream(out, [merge.files[k].path for k in file_ids], labels, empty=empty,
                                    chunk_points=MERGE_CHUNK_POINTS,
@@ -147,15 +155,17 @@ def _write_generic(out: Path, file_ids, merge: _Merge, processed_only: bool) -> 
         merge.check_file(k, cloud.n)
         clouds.append(cloud)
     cloud = concat_clouds(clouds, merge.plan.read_origin)
-    cls, dec, seg, proc = (np.concatenate(parts) for parts in zip(*labels))
-    io.write(out, cloud, classification=cls, extra_dims={"roadx_label": dec, "segment_id": seg},
+    cls, dec, seg, proc = (np.concatenate(parts) for parts in zip(*(label[:4] for label in labels)))
+    extra = {name: np.concatenate([label[4][name] for label in labels]) for name in merge.extra_names}
+    io.write(out, cloud, classification=cls, extra_dims={"roadx_label": dec, "segment_id": seg, **extra},
              subset=proc if processed_only else None)
     return int(proc.sum()) if processed_only else cloud.n
 
 
 def write_outputs(plan, results, files, outputs: list[tuple[Path, list[int]]], *, processed_only: bool,
-                  truth_classes, target: int) -> tuple[int, _Merge]:
-    merge = _Merge(plan, results, files, truth_classes, target)
+                  truth_classes, target: int, extra_names=()) -> tuple[int, _Merge]:
+    """extra_names: the stages' point outputs (Stage.writes) the files carry as extra dimensions."""
+    merge = _Merge(plan, results, files, truth_classes, target, extra_names)
     written = 0
     for out, file_ids in outputs:
         stream = _is_las(out) and all(_is_las(files[k].path) for k in file_ids)

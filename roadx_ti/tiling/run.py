@@ -218,8 +218,10 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     t_merge = time.perf_counter()
     segments = reconcile_segments(plan, results)
     target = PIPELINE_TARGET[cfg.pipeline]
+    from roadx_ti.stages import stage_class
+    extra_names = [key for name, _ in cfg.pipeline_stages() for key in stage_class(name).writes]
     written, merge = write_outputs(plan, results, files, outputs, processed_only=cfg.output.points == "processed",
-                                   truth_classes=cfg.truth_classes, target=target)
+                                   truth_classes=cfg.truth_classes, target=target, extra_names=extra_names)
     merge_s = time.perf_counter() - t_merge
 
     summary = {

@@ -43,6 +43,7 @@ class FilePart:
     decided_by: np.ndarray
     segment_id: np.ndarray    # local to the tile
     processed: np.ndarray
+    extra: dict = field(default_factory=dict)   # the stages' point outputs (Stage.writes): name -> float32
 
 
 @dataclass
@@ -162,7 +163,8 @@ def run_tile(job: TileJob) -> TileResult:
     for k, lo, hi in zip(owners, sizes[:-1], sizes[1:]):
         keep = np.flatnonzero(core[lo:hi]) + lo
         result.parts[k] = FilePart(labels.classification[keep], labels.decided_by[keep],
-                                   labels.segment_id[keep], labels.processed[keep])
+                                   labels.segment_id[keep], labels.processed[keep],
+                                   {name: values[keep] for name, values in labels.extra_dims.items()})
     result.points_read = int(n)
     result.points_core = int(core.sum())
     seg = labels.segment_id
