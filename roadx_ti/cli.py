@@ -416,8 +416,11 @@ def _run_tiled(cfg, out: Path, args) -> int:
 
     if not cfg.input.paths:
         raise config.ConfigError("config error: input: tiled runs read files; give input.paths or --input")
-    if cfg.output.dtm not in (None, False):
-        log.warning("output.dtm: tiled runs write no DTM (each tile has its own cloth); run untiled for one")
+    from roadx_ti.tiling.run import dtm_output
+    dtm_path = dtm_output(cfg, out, cfg.output.mode)
+    if dtm_path is not None and cfg.output.mode != "per-file":     # per-file: the folder made below
+        _make_parent(dtm_path)
+        io.check_output_path(dtm_path, [f.path for f in tiling.catalog(cfg.input.paths, warn=False)])
     if cfg.output.mode == "merged":
         from roadx_ti.io.copc import is_copc_path
         if is_copc_path(out):

@@ -64,14 +64,11 @@ def occupied_window(result, xy: np.ndarray):
     return (row0, col0, row1 - row0, col1 - col0), valid
 
 
-def write(path, result, origin, *, xy: np.ndarray | None = None, crs=None) -> dict:
-    """Write the cloth of ``result`` (a ClothResult on a cloud with local ``origin``) to ``path``.
-    ``xy``: the cloud's local xy, to crop the raster to the occupied space (None: the whole cloth).
-    ``crs``: a rasterio CRS, or None (the GeoTIFF and .asc then carry none). Returns the transform."""
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in FORMATS:
-        raise ValueError(f"{path}: DTM formats are {', '.join(FORMATS)}")
+def grid(result, origin, xy: np.ndarray | None = None):
+    """(heights, transform): the cloth of ``result`` (a ClothResult on a cloud with local
+    ``origin``) as world heights (float64 (rows, cols), row 0 south, NaN off the occupied space),
+    cropped to the cells within the scene's cell size of a point of ``xy`` (the cloud's local xy;
+    None: the whole cloth)."""
     if xy is None:
         window = (0, 0, *result.cloth_z.shape)
         valid = np.ones(result.cloth_z.shape, bool)
@@ -81,7 +78,91 @@ def write(path, result, origin, *, xy: np.ndarray | None = None, crs=None) -> di
     t = transform(result, origin, window)
     heights = result.cloth_z[row0:row0 + rows, col0:col0 + cols].astype(np.float64) + t["z_offset"]
     heights[~valid] = np.nan
-    t["valid_cells"] = int(valid.sum())
+    return heights, t
+
+
+def core_piece(result, origin, xy: np.ndarray, core):
+    """The part of ``grid(result, origin, xy)`` whose cell centres lie in the world rectangle
+    ``core`` = (x0, y0, x1, y1), half-open (a tile's core: the cores of a survey's tiles share no
+    cell), cropped to its cells with data: (float32 heights, transform), or None without any."""
+    heights, t = grid(result, origin, xy)
+    res = t["cell_size"]
+    cx = t["x_lower_left"] + (np.arange(t["cols"]) + 0.5) * res
+    cy = t["y_lower_left"] + (np.arange(t["rows"]) + 0.5) * res
+    inside = ((cy >= core[1]) & (cy < core[3]))[:, None] & ((cx >= core[0]) & (cx < core[2]))[None, :]
+    heights = np.where(inside, heights, np.nan)
+    rows, cols = np.flatnonzero(np.isfinite(heights).any(axis=1)), np.flatnonzero(np.isfinite(heights).any(axis=0))
+    if not len(rows):
+        return None
+    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    t = dict(t, x_lower_left=t["x_lower_left"] + c0 * res, y_lower_left=t["y_lower_left"] + r0 * res,
+             rows=int(r1 - r0), cols=int(c1 - c0))
+    return heights[r0:r1, c0:c1].astype(np.float32), t
+
+
+def mosaic(pieces, gap: float = 100.0):
+    """(float64 heights, transform, pieces left out): one grid of ``pieces`` [(heights, transform)]
+    cut from cloths on one world lattice (the cloth stages' align_to_world: cell centres at world
+    multiples of the cell size), such as a tiled run's core_pieces; cells with data in no piece are
+    NaN. Pieces within ``gap`` (m) of each other form one part, and only the part with the most
+    cells with data is laid (an untiled run's DTM covers its largest part too): a raster over
+    parts kilometres apart, or over a stray point's tile, would be sized by the gap."""
+    res = pieces[0][1]["cell_size"]
+    # the lattice index of each piece's first cell centre (float32 rounding of the cloth's own
+    # corner moves it by far less than a cell)
+    at = [(int(round(t["x_lower_left"] / res + 0.5)), int(round(t["y_lower_left"] / res + 0.5))) for _, t in pieces]
+    part = _parts([(c, r, c + t["cols"], r + t["rows"]) for (c, r), (_, t) in zip(at, pieces)], gap / res)
+    cells = np.bincount(part, weights=[np.isfinite(h).sum() for h, _ in pieces])
+    keep = part == int(np.argmax(cells))
+    left_out = int((~keep).sum())
+    at = [a for a, k in zip(at, keep) if k]
+    pieces = [p for p, k in zip(pieces, keep) if k]
+    c_min = min(c for c, _ in at)
+    r_min = min(r for _, r in at)
+    cols = max(c + t["cols"] for (c, _), (_, t) in zip(at, pieces)) - c_min
+    rows = max(r + t["rows"] for (_, r), (_, t) in zip(at, pieces)) - r_min
+    out = np.full((rows, cols), np.nan)
+    for (c, r), (h, t) in zip(at, pieces):
+        window = out[r - r_min:r - r_min + t["rows"], c - c_min:c - c_min + t["cols"]]
+        np.copyto(window, h, where=np.isfinite(h))
+    t = dict(pieces[0][1], x_lower_left=(c_min - 0.5) * res, y_lower_left=(r_min - 0.5) * res,
+             rows=int(rows), cols=int(cols))
+    return out, t, left_out
+
+
+def _parts(boxes, gap: float) -> np.ndarray:
+    """Part index per box (c0, r0, c1, r1), half-open, in cells: boxes less than ``gap`` cells apart
+    (in both axes' gaps, Chebyshev) are one part (a pass over pairs: a run has one box per tile)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    gx = np.maximum(b[:, None, 0] - b[None, :, 2], b[None, :, 0] - b[:, None, 2])
+    gy = np.maximum(b[:, None, 1] - b[None, :, 3], b[None, :, 1] - b[:, None, 3])
+    near = np.maximum(gx, gy) < gap
+    rows, cols = np.nonzero(near)
+    _, part = connected_components(coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(b), len(b))),
+                                   directed=False)
+    return part
+
+
+def write(path, result, origin, *, xy: np.ndarray | None = None, crs=None) -> dict:
+    """Write the cloth of ``result`` (a ClothResult on a cloud with local ``origin``) to ``path``.
+    ``xy``: the cloud's local xy, to crop the raster to the occupied space (None: the whole cloth).
+    ``crs``: a rasterio CRS, or None (the GeoTIFF and .asc then carry none). Returns the transform."""
+    heights, t = grid(result, origin, xy)
+    return write_grid(path, heights, t, crs)
+
+
+def write_grid(path, heights: np.ndarray, t: dict, crs=None) -> dict:
+    """Write world ``heights`` (row 0 south, NaN = no data) placed by the transform ``t`` to
+    ``path`` (one of FORMATS); returns ``t`` with its cells with data counted."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in FORMATS:
+        raise ValueError(f"{path}: DTM formats are {', '.join(FORMATS)}")
+    heights = np.asarray(heights, np.float64)
+    t = dict(t, valid_cells=int(np.isfinite(heights).sum()))
     if suffix == ".npy":
         with atomic_output(path) as tmp:
             np.save(tmp, heights.astype(np.float32))

@@ -21,7 +21,8 @@ def backend_ready() -> bool:
 
 
 def make_jobs(plan: TilePlan, files: list[CatalogFile], stage_specs, *, backend: str,
-              threads: int | None, seed: int, survey_estimates: dict | None = None, split=None) -> list[TileJob]:
+              threads: int | None, seed: int, survey_estimates: dict | None = None, split=None,
+              dtm: bool = False) -> list[TileJob]:
     survey_z_min = min((f.z_range[0] for f in files if f.count), default=math.inf)
     return [TileJob(tile=t, paths={k: os.path.abspath(files[k].path) for k in t.files}, grid=plan.grid,
                     neighbour_cells={u: (plan.tiles[u].col, plan.tiles[u].row) for u in t.neighbours},
@@ -29,7 +30,7 @@ def make_jobs(plan: TilePlan, files: list[CatalogFile], stage_specs, *, backend:
                     stage_specs=list(stage_specs), backend=backend, threads=threads, seed=seed,
                     survey_z_min=survey_z_min, survey_points=sum(f.count for f in files),
                     survey_estimates=survey_estimates,
-                    parts=split.for_tile(t.index, t.files) if split is not None else {})
+                    parts=split.for_tile(t.index, t.files) if split is not None else {}, dtm=dtm)
             for t in plan.tiles]
 
 

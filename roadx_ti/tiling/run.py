@@ -162,6 +162,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
 
     from roadx_ti.estimates import measure_catalog
 
+    dtm_path = dtm_output(cfg, output_path, output_mode)
     t_est = time.perf_counter()
     if not backend_ready():
         from roadx_ti import backend
@@ -190,7 +191,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
         if workers is None and not scheduler:
             executor, n_workers = "in-process", 1
             jobs = make_jobs(plan, files, stage_specs, backend=cfg.backend, threads=cfg.threads, seed=cfg.seed,
-                             survey_estimates=survey, split=split)
+                             survey_estimates=survey, split=split, dtm=dtm_path is not None)
             once = _FirstOfEachWarning()
             stage_log = logging.getLogger("roadx_ti")     # the stages' log (StageContext)
             stage_log.addFilter(once)
@@ -206,7 +207,8 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
             # one Taichi runtime per worker process; CPU unless the config names a backend
             threads = cfg.threads or (max(1, (os.cpu_count() or 1) // int(workers)) if workers else None)
             jobs = make_jobs(plan, files, stage_specs, backend="cpu" if cfg.backend == "auto" else cfg.backend,
-                             threads=threads, seed=cfg.seed, survey_estimates=survey, split=split)
+                             threads=threads, seed=cfg.seed, survey_estimates=survey, split=split,
+                             dtm=dtm_path is not None)
             run_on_dask(session.client, jobs, on_done, in_flight=2 * n_workers)
     finally:
         bar.close()
@@ -222,6 +224,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     extra_names = [key for name, _ in cfg.pipeline_stages() for key in stage_class(name).writes]
     written, merge = write_outputs(plan, results, files, outputs, processed_only=cfg.output.points == "processed",
                                    truth_classes=cfg.truth_classes, target=target, extra_names=extra_names)
+    dtm_summary = _write_dtm(dtm_path, results, files, cfg, log) if dtm_path is not None else None
     merge_s = time.perf_counter() - t_merge
 
     summary = {
@@ -251,9 +254,62 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
         from roadx_ti.metrics import scores
         summary["truth_classes"] = cfg.truth_classes
         summary["accuracy"] = scores(truth, np.concatenate(merge.pred))
+    if dtm_summary is not None:
+        summary["dtm"] = dtm_summary
     summary["summary_path"] = str(summary_path)
     jsonio.write(summary_path, summary)
     log.info("wrote %s (%d points, %d tiles, %s) in %.2f s", ", ".join(summary["outputs"][:3])
              + (" ..." if len(outputs) > 3 else ""), written, len(plan.tiles), executor,
              time.perf_counter() - t_start)
     return summary
+
+
+def dtm_output(cfg, output_path, output_mode: str) -> Path | None:
+    """Where a tiled run's DTM goes: output.dtm's path when it names one, else (output.dtm true, or
+    unset in the ground pipeline) STEM.dtm.tif beside a merged output or dtm.tif in a per-file
+    output's folder; None when no DTM is asked for."""
+    path = cfg.dtm_path()
+    if path is None or isinstance(cfg.output.dtm, str):
+        return path
+    if output_mode == "per-file":
+        return Path(output_path) / "dtm.tif"
+    from roadx_ti.config import output_stem
+    return Path(f"{output_stem(output_path)}.dtm.tif")
+
+
+def _write_dtm(path: Path, results: dict, files, cfg, log) -> dict | None:
+    """The ground surface of a tiled run as one DTM raster: the mosaic of the tiles' core cells
+    (their cloths share one world lattice), over the occupied space, with the first LAS/LAZ
+    input's CRS. None (and a warning) when no tile ran a ground stage."""
+    from roadx_ti import dtm
+    from roadx_ti.io.crs import of_header
+
+    pieces = [r.dtm for _, r in sorted(results.items()) if r.dtm is not None]
+    if not pieces:
+        if cfg.output.dtm is not None:
+            log.warning("output.dtm: no ground stage ran, so there is no DTM to write")
+        return None
+    if not all(getattr(options, "align_to_world", True) for _, options in cfg.pipeline_stages()):
+        log.warning("output.dtm: a ground stage has align_to_world false, so the tiles' cloths lie on "
+                    "lattices of their own and make no mosaic; no DTM written (run untiled for one)")
+        return None
+    crs = None
+    for f in files:
+        if Path(f.path).suffix.lower() in (".las", ".laz"):
+            import laspy
+            with laspy.open(f.path) as reader:
+                crs = of_header(reader.header)
+            if crs is not None:
+                break
+    if crs is None and path.suffix.lower() != ".npy":
+        log.warning("%s: the input has no CRS, so the DTM carries none", path)
+    heights, t, left_out = dtm.mosaic(pieces)
+    if left_out:
+        log.warning("output.dtm: %d tile(s) hold points more than 100 m from the largest part of the survey; "
+                    "the DTM covers the largest part (a raster over all would be sized by the gaps)", left_out)
+    t = dtm.write_grid(path, heights, t, crs)
+    log.info("wrote DTM %s: %d x %d cells of %g m over the occupied area (%d with data), the mosaic of %d "
+             "tiles' cloths", path, t["cols"], t["rows"], t["cell_size"], t["valid_cells"], len(pieces) - left_out)
+    return {"path": str(path), "crs": crs.to_string() if crs else None, "cell_size": t["cell_size"],
+            "rows": t["rows"], "cols": t["cols"], "x_lower_left": t["x_lower_left"],
+            "y_lower_left": t["y_lower_left"], "valid_cells": t["valid_cells"], "tiles": len(pieces) - left_out}

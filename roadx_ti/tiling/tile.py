@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from roadx_ti.cloud import Cloud
-from roadx_ti.stages.base import ESTIMATES, SURVEY_POINTS, SURVEY_Z_MIN
+from roadx_ti.stages.base import ESTIMATES, GROUND_SURFACE, SURVEY_POINTS, SURVEY_Z_MIN
 from roadx_ti.tiling.plan import CoreGrid, Tile
 from roadx_ti.tiling.split import read_part
 
@@ -34,6 +34,7 @@ class TileJob:
     survey_points: int = 0           # points of the catalog (a tile of a stray point sees it isolated)
     survey_estimates: dict | None = None   # roadx_ti.estimates of the whole catalog, for 'auto' options
     parts: dict = field(default_factory=dict)  # catalog index -> split.Part (None: no points here) of split files
+    dtm: bool = False                # keep the ground surface's cells in the core (output.dtm)
 
 
 @dataclass
@@ -59,6 +60,7 @@ class TileResult:
     pipeline_seconds: float = 0.0
     seconds: float = 0.0
     worker: str = ""
+    dtm: tuple | None = None  # (float32 heights, transform) of the ground surface's core cells (roadx_ti.dtm)
     stages: list = field(default_factory=list)
 
 
@@ -153,6 +155,14 @@ def run_tile(job: TileJob) -> TileResult:
         ctx.facts[ESTIMATES] = dict(job.survey_estimates)   # every tile the survey's values
     with backend.collect_in_this_thread():     # a Dask worker's task thread on a GPU
         labels = pipelines.run(cloud, pipelines.build_stages(job.stage_specs), ctx=ctx)
+    surface = ctx.facts.get(GROUND_SURFACE) if job.dtm else None
+    if surface is not None:
+        # the cloth's cells whose centres lie in this tile's core (the tiles' cloths share one
+        # world lattice): the survey's DTM is their mosaic (tiling/run.py)
+        from roadx_ti import dtm
+        xy = np.column_stack([x - float(job.read_origin[0]), y - float(job.read_origin[1])])
+        result.dtm = dtm.core_piece(surface.largest, surface.origin, xy, tile.core)
+        del xy
     result.pipeline_seconds = time.perf_counter() - t0
     result.stages = [{k: r[k] for k in ("stage", "points_in", "points_out", "seconds")} for r in labels.stages]
     n = cloud.n
