@@ -82,50 +82,61 @@ def grid(result, origin, xy: np.ndarray | None = None):
 
 
 def core_piece(result, origin, xy: np.ndarray, core):
-    """The part of ``grid(result, origin, xy)`` whose cell centres lie in the world rectangle
-    ``core`` = (x0, y0, x1, y1), half-open (a tile's core: the cores of a survey's tiles share no
-    cell), cropped to its cells with data: (float32 heights, transform), or None without any."""
+    """``grid(result, origin, xy)`` (a tile's cloth over its window's points), cropped to its cells
+    with data, with a mask of the cells whose centres lie in the world rectangle ``core`` = (x0, y0,
+    x1, y1), half-open (the tile's core: the cores of a survey's tiles share no cell):
+    (float32 heights, bool in_core, transform), or None without any cell with data. ``mosaic``
+    takes each cell from the tile whose core holds it, and a cell no core holds (beyond the core
+    grid's edge, or in a core cell without a tile: the rim of the occupied space) from the first
+    tile that has it."""
     heights, t = grid(result, origin, xy)
-    res = t["cell_size"]
-    cx = t["x_lower_left"] + (np.arange(t["cols"]) + 0.5) * res
-    cy = t["y_lower_left"] + (np.arange(t["rows"]) + 0.5) * res
-    inside = ((cy >= core[1]) & (cy < core[3]))[:, None] & ((cx >= core[0]) & (cx < core[2]))[None, :]
-    heights = np.where(inside, heights, np.nan)
-    rows, cols = np.flatnonzero(np.isfinite(heights).any(axis=1)), np.flatnonzero(np.isfinite(heights).any(axis=0))
+    finite = np.isfinite(heights)
+    rows, cols = np.flatnonzero(finite.any(axis=1)), np.flatnonzero(finite.any(axis=0))
     if not len(rows):
         return None
     r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    res = t["cell_size"]
     t = dict(t, x_lower_left=t["x_lower_left"] + c0 * res, y_lower_left=t["y_lower_left"] + r0 * res,
              rows=int(r1 - r0), cols=int(c1 - c0))
-    return heights[r0:r1, c0:c1].astype(np.float32), t
+    cx = t["x_lower_left"] + (np.arange(t["cols"]) + 0.5) * res
+    cy = t["y_lower_left"] + (np.arange(t["rows"]) + 0.5) * res
+    in_core = ((cy >= core[1]) & (cy < core[3]))[:, None] & ((cx >= core[0]) & (cx < core[2]))[None, :]
+    return heights[r0:r1, c0:c1].astype(np.float32), in_core, t
 
 
 def mosaic(pieces, gap: float = 100.0):
-    """(float64 heights, transform, pieces left out): one grid of ``pieces`` [(heights, transform)]
-    cut from cloths on one world lattice (the cloth stages' align_to_world: cell centres at world
-    multiples of the cell size), such as a tiled run's core_pieces; cells with data in no piece are
-    NaN. Pieces within ``gap`` (m) of each other form one part, and only the part with the most
+    """(float64 heights, transform, pieces left out): one grid of ``pieces`` [(heights, in_core,
+    transform)] cut from cloths on one world lattice (the cloth stages' align_to_world: cell centres
+    at world multiples of the cell size), a tiled run's core_pieces in tile order: each cell from
+    the piece whose core holds it, else from the first piece with data there; NaN where none has
+    any. Pieces within ``gap`` (m) of each other form one part, and only the part with the most
     cells with data is laid (an untiled run's DTM covers its largest part too): a raster over
     parts kilometres apart, or over a stray point's tile, would be sized by the gap."""
-    res = pieces[0][1]["cell_size"]
+    # (heights, transform): a piece all of whose cells are its core's
+    pieces = [p if len(p) == 3 else (p[0], np.ones(np.shape(p[0]), bool), p[1]) for p in pieces]
+    res = pieces[0][-1]["cell_size"]
     # the lattice index of each piece's first cell centre (float32 rounding of the cloth's own
     # corner moves it by far less than a cell)
-    at = [(int(round(t["x_lower_left"] / res + 0.5)), int(round(t["y_lower_left"] / res + 0.5))) for _, t in pieces]
-    part = _parts([(c, r, c + t["cols"], r + t["rows"]) for (c, r), (_, t) in zip(at, pieces)], gap / res)
-    cells = np.bincount(part, weights=[np.isfinite(h).sum() for h, _ in pieces])
+    at = [(int(round(t["x_lower_left"] / res + 0.5)), int(round(t["y_lower_left"] / res + 0.5))) for *_, t in pieces]
+    part = _parts([(c, r, c + t["cols"], r + t["rows"]) for (c, r), (*_, t) in zip(at, pieces)], gap / res)
+    cells = np.bincount(part, weights=[np.isfinite(h).sum() for h, *_ in pieces])
     keep = part == int(np.argmax(cells))
     left_out = int((~keep).sum())
     at = [a for a, k in zip(at, keep) if k]
     pieces = [p for p, k in zip(pieces, keep) if k]
     c_min = min(c for c, _ in at)
     r_min = min(r for _, r in at)
-    cols = max(c + t["cols"] for (c, _), (_, t) in zip(at, pieces)) - c_min
-    rows = max(r + t["rows"] for (_, r), (_, t) in zip(at, pieces)) - r_min
+    cols = max(c + t["cols"] for (c, _), (*_, t) in zip(at, pieces)) - c_min
+    rows = max(r + t["rows"] for (_, r), (*_, t) in zip(at, pieces)) - r_min
     out = np.full((rows, cols), np.nan)
-    for (c, r), (h, t) in zip(at, pieces):
-        window = out[r - r_min:r - r_min + t["rows"], c - c_min:c - c_min + t["cols"]]
-        np.copyto(window, h, where=np.isfinite(h))
-    t = dict(pieces[0][1], x_lower_left=(c_min - 0.5) * res, y_lower_left=(r_min - 0.5) * res,
+    for core_pass in (False, True):
+        # first the cells outside each piece's core (the first piece with data wins), then the
+        # core cells, which no two pieces share
+        for (c, r), (h, in_core, t) in zip(at, pieces):
+            window = out[r - r_min:r - r_min + t["rows"], c - c_min:c - c_min + t["cols"]]
+            take = np.isfinite(h) & (in_core if core_pass else ~in_core & np.isnan(window))
+            np.copyto(window, h, where=take)
+    t = dict(pieces[0][-1], x_lower_left=(c_min - 0.5) * res, y_lower_left=(r_min - 0.5) * res,
              rows=int(rows), cols=int(cols))
     return out, t, left_out
 

@@ -133,7 +133,7 @@ def test_a_tiled_run_writes_the_mosaic_of_its_tiles_cloths(tmp_path):
     write_las(tmp_path / "east.las", ground[~west], crs_wkt=LAMBERT93.to_wkt())
     cfg = write_tiny_config(tmp_path, "pipeline: ground\noutput: {report_png: false}\nstages:\n"
                                       "  - cloth_ground: {cloth_resolution: 1.0, iterations: 200}\n")
-    runs = {"untiled": [], "tiled": ["--tile-size", "15"],
+    runs = {"untiled": [], "one_tile": ["--tile-size", "inf"], "tiled": ["--tile-size", "15"],
             "workers": ["--tile-size", "15", "--workers", "2"]}
     rasters = {}
     for name, extra in runs.items():
@@ -147,7 +147,7 @@ def test_a_tiled_run_writes_the_mosaic_of_its_tiles_cloths(tmp_path):
         summary = json.loads((tmp_path / name / "ground.summary.json").read_text())
         assert summary["dtm"]["crs"] == "EPSG:2154"
     base, base_transform, _ = rasters["untiled"]
-    for name in ("tiled", "workers"):
+    for name in ("one_tile", "tiled", "workers"):
         heights, transform, crs = rasters[name]
         assert crs == LAMBERT93
         assert heights.shape == base.shape
@@ -176,6 +176,13 @@ def test_mosaic_lays_pieces_on_their_lattice_and_leaves_far_parts_out():
     np.testing.assert_array_equal(heights[:, :4], 1.0)
     np.testing.assert_array_equal(heights[1:, 4:], [[2.0, np.nan], [2.0, 2.0]])
     assert np.isnan(heights[0, 4:]).all()
+    # overlapping pieces: a cell comes from the piece whose core holds it, else from the first
+    a = (np.full((1, 3), 1.0, np.float32), np.array([[True, False, False]]), piece(0, 0, np.zeros((1, 3)))[1])
+    b = (np.full((1, 3), 2.0, np.float32), np.array([[False, False, True]]), piece(1, 0, np.zeros((1, 3)))[1])
+    np.testing.assert_array_equal(dtm.mosaic([a, b])[0], [[1.0, 1.0, 1.0, 2.0]])
+    np.testing.assert_array_equal(dtm.mosaic([b, a])[0], [[1.0, 2.0, 2.0, 2.0]])
+    b[1][0, 1] = True           # cell 2 now in b's core: b's whatever the order
+    np.testing.assert_array_equal(dtm.mosaic([a, b])[0], [[1.0, 1.0, 2.0, 2.0]])
 
 
 def test_other_formats_are_config_errors():
