@@ -418,7 +418,8 @@ def _run_tiled(cfg, out: Path, args) -> int:
         raise config.ConfigError("config error: input: tiled runs read files; give input.paths or --input")
     from roadx_ti.tiling.run import dtm_output
     dtm_path = dtm_output(cfg, out, cfg.output.mode)
-    if dtm_path is not None and cfg.output.mode != "per-file":     # per-file: the folder made below
+    if dtm_path is not None and (cfg.output.mode != "per-file" or isinstance(cfg.output.dtm, str)):
+        # (per-file's own dtm.tif goes into the output folder, made below)
         _make_parent(dtm_path)
         io.check_output_path(dtm_path, [f.path for f in tiling.catalog(cfg.input.paths, warn=False)])
     if cfg.output.mode == "merged":
