@@ -277,3 +277,32 @@ def test_road_regions_with_its_rows_queried_again_after_the_merge_is_the_same(mo
     queried = stage.run(cloud, StageContext(seed=0))
     assert (held.labels == 11).sum() > 1000                     # a road was found
     assert np.array_equal(held.labels, queried.labels) and np.array_equal(held.segment_id, queried.segment_id)
+
+
+def test_road_regions_warns_when_the_noise_blurs_common_kerbs():
+    """Kerbs lower than the edge-preserving filter's window (filter_width x the measured height
+    noise) blur in the filtered heights; road_regions reports that height in its estimates and
+    warns once it exceeds a common kerb's 10 cm (unseen scenes with such noise lost streets or took
+    sidewalks: ACCURACY.md's notes)."""
+    import logging
+
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages import road_regions
+    from roadx_ti.stages.base import StageContext
+
+    rng = np.random.default_rng(7)
+    xy = rng.uniform(0, 20, (20_000, 2))
+    rgb = np.full((len(xy), 3), 120 * 257, np.uint16)
+    stage = road_regions.RoadRegions(road_regions.RoadRegionsOptions())
+    for noise, warned in ((0.01, False), (0.06, True)):
+        xyz = np.column_stack([xy, rng.normal(0, noise, len(xy))]).astype(np.float32)
+        cloud = Cloud(xyz=xyz, origin=np.zeros(3), rgb=rgb, color_depth=16)
+        records = []
+        log = logging.getLogger(f"road_regions_test_{noise}")
+        log.addHandler(type("Keep", (logging.Handler,), {"emit": lambda self, r: records.append(r)})())
+        result = stage.run(cloud, StageContext(seed=0, log=log))
+        resolved = result.info["estimates"]["kerbs_resolved_above_m"]
+        measured = result.info["estimates"]["height_noise_m"]
+        assert resolved == pytest.approx(2.5 * measured, rel=1e-3) and measured == pytest.approx(noise, rel=0.2)
+        warnings = [r.getMessage() for r in records if r.levelno == logging.WARNING and "blur" in r.getMessage()]
+        assert (len(warnings) == 1) == warned, warnings

@@ -37,6 +37,9 @@ from roadx_ti.stages.base import CLASS_OTHER, CLASS_ROAD, MIN_BUFFER, Stage, Sta
 
 # robust sigma from a median absolute value (Gaussian): 1.4826 * MAD
 MAD_TO_SIGMA = 1.4826
+# m: a common kerb height (kerbs are commonly 8-16 cm): measured height noise that blurs steps of
+# this height gets a warning
+TYPICAL_KERB = 0.10
 # above this many working points the kNN rows are not held through the region merge but queried
 # again after it (memory for time: 48 B/pt of rows against about 0.5 s per million points)
 REQUERY_ROWS_ABOVE = 2_000_000
@@ -250,6 +253,15 @@ class RoadRegions(Stage):
                      "height_noise_m": round(float(height_noise), 4), "filtered_step_sigma_m": round(float(step_sigma), 4),
                      "colour_noise": round(float(colour_noise), 3), "colour_levels": [round(float(v), 3) for v in levels]}
         ctx.log.info("road_regions: %s colour, estimates %s", source, estimates)
+        # the edge-preserving filter keeps a step apart only when it exceeds the filter's window:
+        # lower kerbs blur over the neighbourhood (ACCURACY.md's notes: unseen scenes with kerbs
+        # under 2.5 noise sigmas lost streets or took sidewalks)
+        resolved = o.filter_width * height_noise
+        estimates["kerbs_resolved_above_m"] = round(float(resolved), 4)
+        if resolved > TYPICAL_KERB:
+            ctx.log.warning("road_regions: height noise %.1f cm: kerbs lower than %.0f cm blur in the filtered "
+                            "heights, so sidewalks may join the road or streets be missed (kerbs are commonly "
+                            "8-16 cm)", 100 * height_noise, 100 * resolved)
         return StageResult(labels=labels, segment_id=graph.label.astype(np.int32),
                            info={"color_source": source, "estimates": estimates, **facts,
                                  "off_surface_points": int(off_surface), "target_points": int(is_road.sum())})
