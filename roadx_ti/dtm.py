@@ -105,7 +105,7 @@ def core_piece(result, origin, xy: np.ndarray, core):
 
 
 def mosaic(pieces, gap: float = 100.0):
-    """(float64 heights, transform, pieces left out): one grid of ``pieces`` [(heights, in_core,
+    """(float32 heights, transform, pieces left out): one grid of ``pieces`` [(heights, in_core,
     transform)] cut from cloths on one world lattice (the cloth stages' align_to_world: cell centres
     at world multiples of the cell size), a tiled run's core_pieces in tile order: each cell from
     the piece whose core holds it, else from the first piece with data there; NaN where none has
@@ -128,7 +128,7 @@ def mosaic(pieces, gap: float = 100.0):
     r_min = min(r for _, r in at)
     cols = max(c + t["cols"] for (c, _), (*_, t) in zip(at, pieces)) - c_min
     rows = max(r + t["rows"] for (_, r), (*_, t) in zip(at, pieces)) - r_min
-    out = np.full((rows, cols), np.nan)
+    out = np.full((rows, cols), np.nan, np.float32)     # the GeoTIFF's type: half the memory
     for core_pass in (False, True):
         # first the cells outside each piece's core (the first piece with data wins), then the
         # core cells, which no two pieces share
@@ -143,17 +143,23 @@ def mosaic(pieces, gap: float = 100.0):
 
 def _parts(boxes, gap: float) -> np.ndarray:
     """Part index per box (c0, r0, c1, r1), half-open, in cells: boxes less than ``gap`` cells apart
-    (in both axes' gaps, Chebyshev) are one part (a pass over pairs: a run has one box per tile)."""
+    (the larger of the two axes' gaps) are one part. Candidate pairs from a kd-tree of the boxes'
+    centres (a run has one box per tile: thousands of tiles make no all-pairs matrix)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
 
     b = np.asarray(boxes, np.float64).reshape(-1, 4)
-    gx = np.maximum(b[:, None, 0] - b[None, :, 2], b[None, :, 0] - b[:, None, 2])
-    gy = np.maximum(b[:, None, 1] - b[None, :, 3], b[None, :, 1] - b[:, None, 3])
+    centre = 0.5 * (b[:, :2] + b[:, 2:])
+    half = 0.5 * (b[:, 2:] - b[:, :2])
+    # boxes closer than the gap have centres within the gap plus two half-extents (Chebyshev)
+    pairs = cKDTree(centre).query_pairs(gap + 2.0 * float(half.max(initial=0.0)), p=np.inf, output_type="ndarray")
+    i, j = pairs[:, 0], pairs[:, 1]
+    gx = np.maximum(b[i, 0] - b[j, 2], b[j, 0] - b[i, 2])
+    gy = np.maximum(b[i, 1] - b[j, 3], b[j, 1] - b[i, 3])
     near = np.maximum(gx, gy) < gap
-    rows, cols = np.nonzero(near)
-    _, part = connected_components(coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(b), len(b))),
-                                   directed=False)
+    i, j = i[near], j[near]
+    _, part = connected_components(coo_matrix((np.ones(len(i)), (i, j)), shape=(len(b), len(b))), directed=False)
     return part
 
 
@@ -172,7 +178,7 @@ def write_grid(path, heights: np.ndarray, t: dict, crs=None) -> dict:
     suffix = path.suffix.lower()
     if suffix not in FORMATS:
         raise ValueError(f"{path}: DTM formats are {', '.join(FORMATS)}")
-    heights = np.asarray(heights, np.float64)
+    heights = np.asarray(heights)
     t = dict(t, valid_cells=int(np.isfinite(heights).sum()))
     if suffix == ".npy":
         with atomic_output(path) as tmp:
