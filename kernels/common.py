@@ -41,10 +41,8 @@ def zeros(dtype, shape):
     """A Taichi ndarray of zeros. Filled from numpy rather than by ``Ndarray.fill``, whose kernel
     takes the value as i32: for 8-bit arrays its first compile prints a precision TaichiWarning
     on the CLI's stderr."""
-    if not isinstance(dtype, type(ti.f32)):
-        dtype = _NP_TO_TI[np.dtype(dtype)]
-    out = ti.ndarray(dtype, shape)
-    out.from_numpy(np.zeros(shape, _TI_TO_NP[dtype]))
+    out = ndarray(dtype, shape)
+    out.from_numpy(np.zeros(shape, _TI_TO_NP[out.dtype]))
     return out
 
 

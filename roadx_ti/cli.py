@@ -374,16 +374,11 @@ def _write_dtm(path: Path, surface, cloud) -> dict:
     from roadx_ti import dtm
     from roadx_ti.io import crs as io_crs
 
-    result, origin = surface.largest, surface.origin
     crs = io_crs.of_cloud(cloud)
-    if crs is None and path.suffix.lower() != ".npy":
-        log.warning("%s: the input has no CRS, so the DTM carries none", path)
-    t = dtm.write(path, result, origin, xy=cloud.xyz[:, :2], crs=crs)
+    t = dtm.write(path, surface.largest, surface.origin, xy=cloud.xyz[:, :2], crs=crs)
     log.info("wrote DTM %s: %d x %d cells of %g m over the occupied area (%d with data)", path,
              t["cols"], t["rows"], t["cell_size"], t["valid_cells"])
-    return {"path": str(path), "crs": crs.to_string() if crs else None, "cell_size": t["cell_size"],
-            "rows": t["rows"], "cols": t["cols"], "x_lower_left": t["x_lower_left"],
-            "y_lower_left": t["y_lower_left"], "valid_cells": t["valid_cells"]}
+    return dtm.summary(path, t, crs)
 
 
 def _prepare_output(out: Path, inputs) -> None:
@@ -417,18 +412,19 @@ def _run_tiled(cfg, out: Path, args) -> int:
     if not cfg.input.paths:
         raise config.ConfigError("config error: input: tiled runs read files; give input.paths or --input")
     from roadx_ti.tiling.run import dtm_output
+    inputs = [f.path for f in tiling.catalog(cfg.input.paths, warn=False)]
     dtm_path = dtm_output(cfg, out, cfg.output.mode)
     if dtm_path is not None and (cfg.output.mode != "per-file" or isinstance(cfg.output.dtm, str)):
         # (per-file's own dtm.tif goes into the output folder, made below)
         _make_parent(dtm_path)
-        io.check_output_path(dtm_path, [f.path for f in tiling.catalog(cfg.input.paths, warn=False)])
+        io.check_output_path(dtm_path, inputs)
     if cfg.output.mode == "merged":
         from roadx_ti.io.copc import is_copc_path
         if is_copc_path(out):
             raise UsageError(f"{out}: tiled runs write LAS/LAZ, not COPC yet (COPC needs all points at "
                              "once); write .laz and convert it, e.g. pdal translate x.laz x.copc.laz")
         _make_parent(out)
-        io.check_output_path(out, [f.path for f in tiling.catalog(cfg.input.paths, warn=False)])
+        io.check_output_path(out, inputs)
     else:
         if out.suffix.lower() in io.EXTENSIONS and not out.is_dir():
             # one file per input goes into a folder: a name like x.laz was meant as a file

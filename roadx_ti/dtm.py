@@ -112,8 +112,6 @@ def mosaic(pieces, gap: float = 100.0):
     any. Pieces within ``gap`` (m) of each other form one part, and only the part with the most
     cells with data is laid (an untiled run's DTM covers its largest part too): a raster over
     parts kilometres apart, or over a stray point's tile, would be sized by the gap."""
-    # (heights, transform): a piece all of whose cells are its core's
-    pieces = [p if len(p) == 3 else (p[0], np.ones(np.shape(p[0]), bool), p[1]) for p in pieces]
     res = pieces[0][-1]["cell_size"]
     # the lattice index of each piece's first cell centre (float32 rounding of the cloth's own
     # corner moves it by far less than a cell)
@@ -173,11 +171,14 @@ def write(path, result, origin, *, xy: np.ndarray | None = None, crs=None) -> di
 
 def write_grid(path, heights: np.ndarray, t: dict, crs=None) -> dict:
     """Write world ``heights`` (row 0 south, NaN = no data) placed by the transform ``t`` to
-    ``path`` (one of FORMATS); returns ``t`` with its cells with data counted."""
+    ``path`` (one of FORMATS); returns ``t`` with its cells with data counted. Without a CRS a
+    GeoTIFF or ASCII grid carries none, which one warning line says."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in FORMATS:
         raise ValueError(f"{path}: DTM formats are {', '.join(FORMATS)}")
+    if crs is None and suffix != ".npy":
+        log.warning("%s: the input has no CRS, so the DTM carries none", path)
     heights = np.asarray(heights)
     t = dict(t, valid_cells=int(np.isfinite(heights).sum()))
     if suffix == ".npy":
@@ -193,6 +194,12 @@ def write_grid(path, heights: np.ndarray, t: dict, crs=None) -> dict:
     else:
         _write_geotiff(path, north_first, t, crs)
     return t
+
+
+def summary(path, t: dict, crs) -> dict:
+    """The run summary's 'dtm' entry of a raster written to ``path`` (write / write_grid's ``t``)."""
+    keys = ("cell_size", "rows", "cols", "x_lower_left", "y_lower_left", "valid_cells")
+    return {"path": str(path), "crs": crs.to_string() if crs else None} | {k: t[k] for k in keys}
 
 
 def _write_asc(path: Path, north_first: np.ndarray, t: dict, crs) -> None:

@@ -166,7 +166,7 @@ def test_mosaic_lays_pieces_on_their_lattice_and_leaves_far_parts_out():
         t = {"x_lower_left": (col - 0.5) * 0.5 + noise, "y_lower_left": (row - 0.5) * 0.5 - noise,
              "cell_size": 0.5, "rows": heights.shape[0], "cols": heights.shape[1], "row_order": "south_to_north",
              "z_offset": 0.0}
-        return np.asarray(heights, np.float32), t
+        return np.asarray(heights, np.float32), np.ones(np.shape(heights), bool), t      # all core
     west = piece(1000, 2000, np.full((3, 4), 1.0), 3e-5)
     east = piece(1004, 2001, np.array([[2.0, np.nan], [2.0, 2.0]]), -2e-5)
     far = piece(1004 + 20000, 2000, np.full((2, 2), 9.0))
@@ -177,8 +177,8 @@ def test_mosaic_lays_pieces_on_their_lattice_and_leaves_far_parts_out():
     np.testing.assert_array_equal(heights[1:, 4:], [[2.0, np.nan], [2.0, 2.0]])
     assert np.isnan(heights[0, 4:]).all()
     # overlapping pieces: a cell comes from the piece whose core holds it, else from the first
-    a = (np.full((1, 3), 1.0, np.float32), np.array([[True, False, False]]), piece(0, 0, np.zeros((1, 3)))[1])
-    b = (np.full((1, 3), 2.0, np.float32), np.array([[False, False, True]]), piece(1, 0, np.zeros((1, 3)))[1])
+    a = (np.full((1, 3), 1.0, np.float32), np.array([[True, False, False]]), piece(0, 0, np.zeros((1, 3)))[2])
+    b = (np.full((1, 3), 2.0, np.float32), np.array([[False, False, True]]), piece(1, 0, np.zeros((1, 3)))[2])
     np.testing.assert_array_equal(dtm.mosaic([a, b])[0], [[1.0, 1.0, 1.0, 2.0]])
     np.testing.assert_array_equal(dtm.mosaic([b, a])[0], [[1.0, 2.0, 2.0, 2.0]])
     b[1][0, 1] = True           # cell 2 now in b's core: b's whatever the order

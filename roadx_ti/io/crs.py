@@ -27,12 +27,17 @@ def of_header(header):
     return None
 
 
+def of_path(path):
+    """rasterio CRS of a LAS/LAZ file's header, or None."""
+    import laspy
+    with laspy.open(path) as reader:
+        return of_header(reader.header)
+
+
 def of_cloud(cloud):
     """rasterio CRS of a cloud (LAS input only), or None."""
     if cloud.las is not None:
         return of_header(cloud.las.header)
     if cloud.records_file:
-        import laspy
-        with laspy.open(cloud.records_file) as reader:
-            return of_header(reader.header)
+        return of_path(cloud.records_file)
     return None

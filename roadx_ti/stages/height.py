@@ -5,9 +5,10 @@ filters.hag_*, lidR's normalize_height). Kernel: the cloth's bilinear height
 Needs a ground stage before it (cloth_ground or cloth_smooth: GROUND_SURFACE). Writes point_data
 'height_above_ground' (float32, m; NaN under no part of the surface: isolated points), which later
 stages read (roof_filter's height tests) and the output carries as an extra dimension (LAS/LAZ
-extra bytes, a PLY property, an NPZ/PCD/text column; in tiled runs each point's from its core tile). Points the stage does not see (removed
-or skipped by earlier stages, e.g. the ground cloth_ground takes out) get NaN there. It narrows
-nothing and labels nothing, so a pipeline's labels do not change when it is added.
+extra bytes, a PLY property, an NPZ/PCD/text column; in tiled runs each point's from its core
+tile). Points the stage does not see (removed or skipped by earlier stages, e.g. the ground
+cloth_ground takes out) get NaN there. It narrows nothing and labels nothing, so a pipeline's
+labels do not change when it is added.
 """
 from __future__ import annotations
 

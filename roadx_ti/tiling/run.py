@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from roadx_ti.tiling.catalogs import catalog, check_compatible
+from roadx_ti.tiling.catalogs import LAS_SUFFIXES, catalog, check_compatible
 from roadx_ti.tiling.cluster import _DaskSession
 from roadx_ti.tiling.executors import backend_ready, make_jobs, run_in_process, run_on_dask
 from roadx_ti.tiling.merge import reconcile_segments, write_outputs
@@ -163,6 +163,10 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     from roadx_ti.estimates import measure_catalog
 
     dtm_path = dtm_output(cfg, output_path, output_mode)
+    if dtm_path is not None and not all(getattr(options, "align_to_world", True) for _, options in stage_specs):
+        log.warning("output.dtm: a ground stage has align_to_world false, so the tiles' cloths lie on "
+                    "lattices of their own and make no mosaic; no DTM written (run untiled for one)")
+        dtm_path = None
     t_est = time.perf_counter()
     if not backend_ready():
         from roadx_ti import backend
@@ -282,27 +286,15 @@ def _write_dtm(path: Path, results: dict, files, cfg, log) -> dict | None:
     (their cloths share one world lattice), over the occupied space, with the first LAS/LAZ
     input's CRS. None (and a warning) when no tile ran a ground stage."""
     from roadx_ti import dtm
-    from roadx_ti.io.crs import of_header
+    from roadx_ti.io.crs import of_path
 
     pieces = [r.dtm for _, r in sorted(results.items()) if r.dtm is not None]
     if not pieces:
         if cfg.output.dtm is not None:
             log.warning("output.dtm: no ground stage ran, so there is no DTM to write")
         return None
-    if not all(getattr(options, "align_to_world", True) for _, options in cfg.pipeline_stages()):
-        log.warning("output.dtm: a ground stage has align_to_world false, so the tiles' cloths lie on "
-                    "lattices of their own and make no mosaic; no DTM written (run untiled for one)")
-        return None
-    crs = None
-    for f in files:
-        if Path(f.path).suffix.lower() in (".las", ".laz"):
-            import laspy
-            with laspy.open(f.path) as reader:
-                crs = of_header(reader.header)
-            if crs is not None:
-                break
-    if crs is None and path.suffix.lower() != ".npy":
-        log.warning("%s: the input has no CRS, so the DTM carries none", path)
+    las = (f.path for f in files if Path(f.path).suffix.lower() in LAS_SUFFIXES)
+    crs = next((c for c in map(of_path, las) if c is not None), None)
     heights, t, left_out = dtm.mosaic(pieces)
     if left_out:
         log.warning("output.dtm: %d tile(s) hold points more than 100 m from the largest part of the survey; "
@@ -310,6 +302,4 @@ def _write_dtm(path: Path, results: dict, files, cfg, log) -> dict | None:
     t = dtm.write_grid(path, heights, t, crs)
     log.info("wrote DTM %s: %d x %d cells of %g m over the occupied area (%d with data), the mosaic of %d "
              "tiles' cloths", path, t["cols"], t["rows"], t["cell_size"], t["valid_cells"], len(pieces) - left_out)
-    return {"path": str(path), "crs": crs.to_string() if crs else None, "cell_size": t["cell_size"],
-            "rows": t["rows"], "cols": t["cols"], "x_lower_left": t["x_lower_left"],
-            "y_lower_left": t["y_lower_left"], "valid_cells": t["valid_cells"], "tiles": len(pieces) - left_out}
+    return dtm.summary(path, t, crs) | {"tiles": len(pieces) - left_out}
