@@ -846,7 +846,7 @@ def _native_int64_atomics() -> bool:
 
 
 def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, levels, max_chroma_step,
-                            step_veto, min_size=0, max_rounds=1000, settle=0.005, host=None):
+                            step_veto, min_size=0, max_rounds=1000, settle=0.005, host=None, branches=None):
     """Agglomerate points into regions (see the module docstring) and return a RegionGraph.
 
     ea, eb: int (E,) graph edges; steps_up / steps_down: float (E,) probability that the edge
@@ -862,7 +862,13 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
     region finds its most similar valid neighbour; a region whose best neighbour is larger joins
     it, unless another region joins it in the same round (star merges, no chains). A level ends
     when a round joins fewer than ``settle`` of the regions left. ``host``: run the rounds with
-    numpy (default: on backends without native 64-bit atomics); the result is the same."""
+    numpy (default: on backends without native 64-bit atomics); the result is the same.
+
+    ``branches``: a list of level lists; the merge then runs ``levels`` once and, from the
+    regions they leave, each branch's levels and the min_size pass on its own (rounds over those
+    regions as nodes: cheaper than the first levels over every point), and returns an iterator
+    of one RegionGraph per branch, made as it is taken. A branch [l2, l3] after levels [l1] gives
+    the regions of levels [l1, l2, l3], its pairs and step sums included."""
     n = int(n_points)
     col = np.ascontiguousarray(colour, np.float32)
     a32 = np.ascontiguousarray(ea, np.int32)
@@ -870,6 +876,7 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
     evidence = _step_evidence(steps_up, steps_down)
     up_q = _quantised_steps(evidence, len(a32))
     host = (not _native_int64_atomics()) if host is None else bool(host)
+    state = None
     if host:
         label = np.arange(n, dtype=np.int64)
         count = np.ones(n, np.int64)
@@ -893,27 +900,147 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
             _reset_regions(count, csum, kernel_array(col, np.float32), label)
     live = (a32, b32, np.ones(len(a32), np.int64), up_q) if host else chunks
     up_q = chunks = None     # the first chunk holds it; it goes when the second round has re-keyed it
-    schedule = [(float(v), 0) for v in levels] + ([(0.0, 1)] if min_size > 1 else [])
-    rounds = 0
-    regions_left = n
+    last_pass = [(0.0, 1)] if min_size > 1 else []
+    schedule = [(float(v), 0) for v in levels] + (last_pass if branches is None else [])
+    first = None if host else ("distinct" if distinct else "rekey")
+    rounds, regions_left, live = _rounds(label, count, csum, state, live, n, schedule, host, first, 0, n,
+                                         max_rounds, min_size, float(max_chroma_step), float(step_veto), settle)
+    if branches is not None and rounds:
+        # the pairs of the regions now: the last round's items keyed again (as a next round would)
+        if host:
+            items = _host_items(label, *live, n)
+        elif sum(c[4] for c in live):
+            items = _gathered(_carry_and_rekey(state, live, n, 0))
+        else:
+            items = (np.zeros(0, np.int64),) * 4
+    label, count, csum = np.asarray(to_numpy(label)).astype(np.int64), to_numpy(count), to_numpy(csum)
+    # the rounds' pair lists and table go before the final pair table is built
+    state = live = None
+    if branches is None:
+        return _region_graph(label, count, csum, a32, b32, evidence)
+    roots = np.unique(label)                        # ascending point ids: the host rounds' ties
+    node = np.searchsorted(roots, label)            # break as they would over the points
+    if rounds:
+        pairs = _node_items(items, roots)
+        del items
+    else:
+        pairs = _node_pairs(node, len(roots), a32, b32, evidence)
+    # the edges between the regions now: every branch's regions are unions of them
+    cross = np.flatnonzero(node[a32] != node[b32])
+    ca, cb = a32[cross], b32[cross]
+
+    def cross_evidence(index):
+        return evidence(cross[index])
+
+    def branch_graph(branch):
+        tail = [(float(v), 0) for v in branch] + last_pass
+        node_root, node_count, node_csum = _merge_nodes(count[roots], csum[roots], pairs, tail, host, rounds,
+                                                        regions_left, max_rounds, min_size, float(max_chroma_step),
+                                                        float(step_veto), settle)
+        point_count = np.zeros(n, np.int64)
+        point_count[roots] = node_count
+        point_csum = np.zeros((n, 3), np.int64)
+        point_csum[roots] = node_csum
+        return _region_graph(roots[node_root[node]], point_count, point_csum, ca, cb, cross_evidence)
+    # one branch's graph at a time (each holds per-point and per-pair arrays)
+    return (branch_graph(branch) for branch in branches)
+
+
+def _host_items(label, ea, eb, weight, step_sum, n):
+    """A host round's items (pairs of the regions in ``label`` with their edge and step sums)."""
+    la, lb = label[ea], label[eb]
+    cross = la != lb
+    key = np.minimum(la, lb)[cross].astype(np.int64) * n + np.maximum(la, lb)[cross]
+    uk, inv = np.unique(key, return_inverse=True)
+    inv = inv.ravel()
+    return (uk // n, uk % n, np.bincount(inv, weights=weight[cross], minlength=len(uk)).astype(np.int64),
+            np.bincount(inv, weights=step_sum[cross], minlength=len(uk)).astype(np.int64))
+
+
+def _gathered(chunks):
+    """The kernel rounds' pair lists as one host list (a, b, edges, steps), int64."""
+    parts = [[np.asarray(to_numpy(c[i]))[:c[4]].astype(np.int64) for c in chunks] for i in range(4)]
+    return tuple(np.concatenate(p) if p else np.zeros(0, np.int64) for p in parts)
+
+
+def _node_items(items, roots):
+    """Round items keyed by root point ids -> node pairs as _node_pairs gives them (a < b,
+    sorted by (a, b), each pair once: the items hold each pair of regions once)."""
+    a, b = np.searchsorted(roots, items[0]), np.searchsorted(roots, items[1])
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    order = np.argsort(lo * len(roots) + hi, kind="stable")
+    return lo[order], hi[order], items[2][order], items[3][order]
+
+
+def _node_pairs(node, n_nodes, ea, eb, evidence):
+    """The pairs of regions (nodes 0..n_nodes-1, ``node`` per point) that graph edges join, as a
+    merge round's items: (a, b, edges, quantised step sums), a < b, sorted."""
+    keys, steps = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    for start in range(0, len(ea), EDGE_CHUNK):
+        chunk = slice(start, start + EDGE_CHUNK)
+        la, lb = node[ea[chunk]], node[eb[chunk]]
+        at = np.flatnonzero(la != lb)
+        keys.append(np.minimum(la[at], lb[at]).astype(np.int64) * n_nodes + np.maximum(la[at], lb[at]))
+        steps.append(_quantised_steps(lambda index: evidence(at[index] + start), len(at)).astype(np.int64))
+    key, step = np.concatenate(keys), np.concatenate(steps)
+    del keys, steps
+    uk, inv = np.unique(key, return_inverse=True)
+    inv = inv.ravel()
+    return (uk // n_nodes, uk % n_nodes, np.bincount(inv, minlength=len(uk)).astype(np.int64),
+            np.bincount(inv, weights=step, minlength=len(uk)).astype(np.int64))
+
+
+def _rounds(label, count, csum, state, live, n, schedule, host, first, rounds, regions_left, max_rounds,
+            min_size, max_chroma, veto, settle):
+    """The merge rounds of ``schedule`` (level, size pass) from the regions in label / count /
+    csum (host arrays) or ``state`` (kernel arrays) and the round items ``live``: a level ends
+    when a round joins no region or fewer than ``settle`` of those left. ``first``: the first
+    round's kind for the kernels (see _device_round). Returns (rounds, regions left, the last
+    round's items: its pairs, keyed by the regions before that round's merges)."""
     for level, size_pass in schedule:
         while rounds < max_rounds and n and (len(live[0]) if host else sum(c[4] for c in live)):
             rounds += 1
             if host:
-                joined, live = _host_round(label, count, csum, *live, n, level, size_pass, min_size,
-                                           float(max_chroma_step), float(step_veto))
+                joined, live = _host_round(label, count, csum, *live, n, level, size_pass, min_size, max_chroma, veto)
             else:
-                joined, live = _device_round(state, live, n, level, size_pass, min_size, max_chroma_step,
-                                             step_veto, first=("distinct" if distinct else "rekey") if rounds == 1 else None)
+                joined, live = _device_round(state, live, n, level, size_pass, min_size, max_chroma, veto, first)
+                first = None
             if joined == 0:
                 break
             regions_left -= joined
             if joined < settle * regions_left:
                 break       # the level has settled: the rest of its merges are a thin tail
-    label, count, csum = np.asarray(to_numpy(label)).astype(np.int64), to_numpy(count), to_numpy(csum)
-    # the rounds' pair lists and table go before the final pair table is built
-    state = live = None
-    return _region_graph(label, count, csum, a32, b32, evidence)
+    return rounds, regions_left, live
+
+
+def _merge_nodes(count, csum, pairs, schedule, host, rounds, regions_left, max_rounds, min_size, max_chroma, veto,
+                 settle):
+    """The merge rounds of ``schedule`` over regions as nodes (``count``, ``csum`` per node,
+    ``pairs`` as _node_pairs gives them: distinct and sorted), with the kernels or on the host.
+    Returns (root node per node, count and colour sum per node, valid at roots) as numpy int64."""
+    n = len(count)
+    count = np.array(count, np.int64)
+    csum = np.array(csum, np.int64)
+    if not len(pairs[0]):
+        return np.arange(n, dtype=np.int64), count, csum          # nothing left to join
+    if host:
+        label = np.arange(n, dtype=np.int64)
+        _rounds(label, count, csum, None, pairs, n, schedule, True, None, rounds, regions_left, max_rounds,
+                min_size, max_chroma, veto, settle)
+        return label, count, csum
+    # the kernel rounds' state over the nodes (the numpy arrays are written in place on the CPU)
+    label = kernel_array(np.arange(n, dtype=np.int32), np.int32)
+    count_k, csum_k = kernel_array(count, np.int64), kernel_array(csum, np.int64)
+    state = (label, count_k, csum_k) + tuple(output_array(t, (n,), count) for t in (ti.i64, ti.i32, ti.i32)) \
+        + (output_array(ti.i32, (1,), count), [None, count])
+    pa, pb, edges, steps = pairs
+    wide = len(steps) and int(steps.max()) > NARROW_STEPS_MAX
+    live = [(kernel_array(pa, np.int32), kernel_array(pb, np.int32), kernel_array(edges, np.int32),
+             kernel_array(steps, np.int64 if wide else np.int32), len(pa))]
+    _rounds(label, count_k, csum_k, state, live, n, schedule, False, "distinct", rounds, regions_left, max_rounds,
+            min_size, max_chroma, veto, settle)
+    return (np.asarray(to_numpy(label)).astype(np.int64), np.asarray(to_numpy(count_k)).astype(np.int64),
+            np.asarray(to_numpy(csum_k)).astype(np.int64))
 
 
 def _region_graph(label, count, csum, ea, eb, evidence):

@@ -306,3 +306,45 @@ def test_road_regions_warns_when_the_noise_blurs_common_kerbs():
         assert resolved == pytest.approx(2.5 * measured, rel=1e-3) and measured == pytest.approx(noise, rel=0.2)
         warnings = [r.getMessage() for r in records if r.levelno == logging.WARNING and "blur" in r.getMessage()]
         assert (len(warnings) == 1) == warned, warnings
+
+
+@pytest.mark.parametrize("host", [False, True])
+def test_region_merging_branches_equal_the_whole_schedule(host):
+    """Branches continue from the regions the shared levels leave (on the host, over regions):
+    shared levels [l1] then a branch [l2, l3] give the merge of levels [l1, l2, l3], pairs and
+    step sums included; each branch of several gives its own schedule's merge."""
+    n, a, b, up, down, colour = _merge_case(2, n=3000)
+    tail = (10.0, 0.1, 6)
+    branched = list(regions.merge_regions_by_colour(n, a, b, up, down, colour, (1.5,), *tail, host=host,
+                                                    branches=[(3.0, 6.0), (2.0, 4.0), (4.5, 9.0)]))
+    assert len(branched) == 3
+    for graph, rest in zip(branched, [(3.0, 6.0), (2.0, 4.0), (4.5, 9.0)]):
+        whole = regions.merge_regions_by_colour(n, a, b, up, down, colour, (1.5,) + rest, *tail, host=host)
+        assert np.array_equal(graph.label, whole.label)
+        assert np.array_equal(graph.count, whole.count) and np.array_equal(graph.colour_sum, whole.colour_sum)
+        for name in ("pa", "pb", "edges", "up", "down"):
+            assert np.array_equal(getattr(graph, name), getattr(whole, name)), name
+    assert len({g.n_regions for g in branched}) == 3       # the branches differ
+
+
+def test_road_regions_road_is_the_majority_of_its_segmentations():
+    """road_regions' ensemble: one segmentation per scale of the later colour levels, each from
+    the regions the first level leaves; a point is road when most of their road choices say so
+    (before the boundary vote and the surface test, which then act on that road). Each member is
+    the stage run with that scale alone."""
+    from roadx_ti import synthetic
+    from roadx_ti.stages import road_regions
+    from roadx_ti.stages.base import StageContext
+
+    cloud = synthetic.generate("uav-road", 60_000, seed=5)
+
+    def road(scales):
+        options = road_regions.RoadRegionsOptions(ensemble=scales, boundary_passes=0, surface_tol=0)
+        result = road_regions.RoadRegions(options).run(cloud, StageContext(seed=0))
+        return result.labels == 11, result.info
+    members = [road((scale,))[0] for scale in (0.7, 1.0, 1.3)]
+    voted, info = road((0.7, 1.0, 1.3))
+    assert np.array_equal(voted, np.sum(members, axis=0) >= 2)
+    split = ~np.all(np.array(members) == members[0], axis=0)
+    assert split.any() and info["ensemble_split_points"] == int(split.sum())   # the members differ
+    assert np.array_equal(road((1.3, 0.7, 1.0))[0], voted)                       # order of the scales

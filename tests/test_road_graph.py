@@ -179,3 +179,34 @@ def test_road_kerb_share_is_the_share_of_the_road_outline_on_kerbs_it_lies_below
                        np.zeros(3), np.zeros(3))
     kerb, _, b_upper = kerb_relations(flat, Weights())
     assert road_kerb_share(flat, road, kerb, b_upper) == 0.0
+
+
+def _enclosed_patch(patch_rgb, patch_points=300.0):
+    """Regions: 0 road (grey 80) below a kerb to its sidewalk 1 (grey 95); 2 a patch of colour
+    ``patch_rgb`` that only the road surrounds (no kerb between them)."""
+    count = np.array([6000.0, 1500.0, patch_points])
+    mean = np.array([[80, 80, 82], [95, 95, 97], patch_rgb], np.float64)
+    pa, pb = np.array([0, 0]), np.array([1, 2])
+    edges = np.array([300.0, 80.0])
+    up = np.array([280.0, 0.0])
+    return RegionGraph(np.zeros(0, np.int32), count, mean * count[:, None], pa, pb, edges, up, np.zeros(2))
+
+
+@pytest.mark.parametrize("paint, absorbed", [([225.0, 205.0, 45.0], True),     # yellow marking
+                                             ([230.0, 230.0, 228.0], True),    # white marking
+                                             ([34.0, 54.0, 28.0], False),      # lawn
+                                             ([22.0, 33.0, 17.0], False)])     # lawn in shadow
+def test_enclosed_markings_join_the_road_and_vegetation_does_not(paint, absorbed):
+    from roadx_ti.road_graph import _absorb_enclosed, green_dominant
+    graph = _enclosed_patch(paint)
+    road, facts = label_road(graph, 60.0)
+    assert road.tolist() == [True, False, absorbed]
+    # green dominance tells paint from vegetation where excess green alone calls yellow green
+    assert green_dominant(graph.mean_colour()[2:]).tolist() == [not absorbed]
+    if paint[2] < 100 and absorbed:
+        assert excess_green(graph.mean_colour()[2:])[0] > 0.1       # yellow
+    if not absorbed:
+        # the cut leaves the patch out; absorbing without the vegetation test would take it
+        cut = np.array([True, False, False])
+        kerb = graph.up.copy()
+        assert _absorb_enclosed(graph, cut, kerb, Weights())[0].tolist() == [True, False, True]

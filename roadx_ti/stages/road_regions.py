@@ -76,6 +76,13 @@ class RoadRegionsOptions(StageOptions):
                            "test takes the road's local height from")
     settle: float = Field(0.005, gt=0, lt=1, description="a merging level ends when a round joins fewer "
                           "than this share of the regions left (the rest is a thin tail)")
+    ensemble: tuple[float, ...] = Field((1.0,), min_length=1, description="scales of the colour levels after "
+                                        "the first (unitless): one segmentation and road choice per scale, each "
+                                        "from the regions the first level leaves; a point is road when most of "
+                                        "the choices say so. One segmentation's choice flips small pieces of road "
+                                        "or sidewalk with any small change of the input (a delivery at 1 mm, "
+                                        "another sample); the majority of [0.7, 0.85, 1.0, 1.15, 1.3] varies "
+                                        "less, at about 1.8 x this stage's time (ACCURACY.md's notes)")
     height_noise: float | None = Field(None, gt=0, description="height noise (m); None: measured")
     colour_noise: float | None = Field(None, gt=0, description="colour noise of the median-filtered "
                                        "colours (8-bit units); None: measured")
@@ -168,6 +175,26 @@ class RoadRegions(Stage):
         # finite buffer makes tiled labels equal the whole run's; kept so that tile plans do not change.
         return MIN_BUFFER
 
+    @staticmethod
+    def _choose(graph, xyz, origin, density, spacing, weights):
+        """(bool per region: road, facts) of one segmentation."""
+        centroid = None
+        if weights.colour_block > 0:
+            # in world coordinates: the blocks are the same whatever local origin a delivery or a
+            # tile's read took
+            count = np.maximum(graph.count, 1.0)
+            centroid = np.column_stack([np.bincount(graph.label, weights=xyz[:, c], minlength=graph.n_regions)
+                                        / count + float(origin[c]) for c in (0, 1)])
+        road_region, facts = label_road(graph, density, weights, centroid=centroid)
+        if not road_region.any() or facts["road_kerb_share"] < weights.kerbless_below:
+            # no kerb to stand on: a street without kerbs, taken by its shape in plan (where the cut
+            # kept some road that no kerb bounds, only when the shape finds one)
+            ribbon = kerbless_road(graph, xyz[:, :2], spacing, weights)
+            if ribbon.any() or not road_region.any():
+                road_region = ribbon
+                facts["kerbless_road_points"] = int(graph.count[road_region].sum())
+        return road_region, facts
+
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
         from roadx_ti.kernels import regions
         from roadx_ti.kernels.neighbors import knn
@@ -215,28 +242,27 @@ class RoadRegions(Stage):
         grey = colour_f.mean(axis=1)
         colour_noise = o.colour_noise or max(MAD_TO_SIGMA * float(np.median(np.abs(grey[eb] - grey[ea]))) / np.sqrt(2.0), 0.5)
         del grey        # what the merge does not read goes before it (its rounds are the stage's peak)
-        levels = [colour_noise * f for f in o.colour_levels]
-        graph = regions.merge_regions_by_colour(n, ea, eb, evidence, None, colour_f, levels, o.max_chroma_step,
-                                                o.step_veto, o.min_region_points, settle=o.settle)
-        del evidence, steps
         density = plan_density(xyz[:, :2])
         weights = Weights(**o.weights)
-        centroid = None
-        if weights.colour_block > 0:
-            # in world coordinates: the blocks are the same whatever local origin a delivery or a
-            # tile's read took
-            count = np.maximum(graph.count, 1.0)
-            centroid = np.column_stack([np.bincount(graph.label, weights=xyz[:, c], minlength=graph.n_regions)
-                                        / count + float(cloud.origin[c]) for c in (0, 1)])
-        road_region, facts = label_road(graph, density, weights, centroid=centroid)
-        if not road_region.any() or facts["road_kerb_share"] < weights.kerbless_below:
-            # no kerb to stand on: a street without kerbs, taken by its shape in plan (where the cut
-            # kept some road that no kerb bounds, only when the shape finds one)
-            ribbon = kerbless_road(graph, xyz[:, :2], spacing, weights)
-            if ribbon.any() or not road_region.any():
-                road_region = ribbon
-                facts["kerbless_road_points"] = int(graph.count[road_region].sum())
-        is_road = road_region[graph.label]
+
+        # one segmentation per scale of the later colour levels (the first level, most of the
+        # merge's work, is shared): a point is road when most of their road choices say so
+        levels = [colour_noise * f for f in o.colour_levels]
+        scales = sorted(o.ensemble)
+        graphs = regions.merge_regions_by_colour(n, ea, eb, evidence, None, colour_f, levels[:1], o.max_chroma_step,
+                                                 o.step_veto, o.min_region_points, settle=o.settle,
+                                                 branches=[[v * scale for v in levels[1:]] for scale in scales])
+        votes = np.zeros(n, np.int32)
+        middle = len(scales) // 2
+        for number, graph in enumerate(graphs):
+            road_region, facts_here = self._choose(graph, xyz, cloud.origin, density, spacing, weights)
+            votes += road_region[graph.label]
+            if number == middle:
+                segment_label, facts = graph.label, facts_here
+        del graphs, graph, evidence, steps
+        is_road = 2 * votes > len(scales)
+        if len(scales) > 1:
+            facts["ensemble_split_points"] = int(((votes > 0) & (votes < len(scales))).sum())
         if o.boundary_passes and neighbours is None:
             neighbours = rows(*knn(xyz, k))
         for _ in range(o.boundary_passes):
@@ -262,6 +288,6 @@ class RoadRegions(Stage):
             ctx.log.warning("road_regions: height noise %.1f cm: kerbs lower than %.0f cm blur in the filtered "
                             "heights, so sidewalks may join the road or streets be missed (kerbs are commonly "
                             "8-16 cm)", 100 * height_noise, 100 * resolved)
-        return StageResult(labels=labels, segment_id=graph.label.astype(np.int32),
+        return StageResult(labels=labels, segment_id=segment_label.astype(np.int32),
                            info={"color_source": source, "estimates": estimates, **facts,
                                  "off_surface_points": int(off_surface), "target_points": int(is_road.sum())})
