@@ -249,9 +249,17 @@ class RoadRegions(Stage):
         # merge's work, is shared): a point is road when most of their road choices say so
         levels = [colour_noise * f for f in o.colour_levels]
         scales = sorted(o.ensemble)
-        graphs = regions.merge_regions_by_colour(n, ea, eb, evidence, None, colour_f, levels[:1], o.max_chroma_step,
-                                                 o.step_veto, o.min_region_points, settle=o.settle,
-                                                 branches=[[v * scale for v in levels[1:]] for scale in scales])
+        branches = [[v * scale for v in levels[1:]] for scale in scales]
+        if len(scales) == 1:
+            # one segmentation: the whole schedule in one merge (the same regions as its branch)
+            graphs = [regions.merge_regions_by_colour(n, ea, eb, evidence, None, colour_f, levels[:1] + branches[0],
+                                                      o.max_chroma_step, o.step_veto, o.min_region_points,
+                                                      settle=o.settle)]
+            del evidence, steps        # what the cut does not read goes before it
+        else:
+            graphs = regions.merge_regions_by_colour(n, ea, eb, evidence, None, colour_f, levels[:1], o.max_chroma_step,
+                                                     o.step_veto, o.min_region_points, settle=o.settle,
+                                                     branches=branches)
         votes = np.zeros(n, np.int32)
         middle = len(scales) // 2
         for number, graph in enumerate(graphs):
@@ -259,7 +267,8 @@ class RoadRegions(Stage):
             votes += road_region[graph.label]
             if number == middle:
                 segment_label, facts = graph.label, facts_here
-        del graphs, graph, evidence, steps
+        del graphs, graph
+        evidence = steps = None        # (the branches held them)
         is_road = 2 * votes > len(scales)
         if len(scales) > 1:
             facts["ensemble_split_points"] = int(((votes > 0) & (votes < len(scales))).sum())
