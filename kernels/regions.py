@@ -868,7 +868,8 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
     regions they leave, each branch's levels and the min_size pass on its own (rounds over those
     regions as nodes: cheaper than the first levels over every point), and returns an iterator
     of one RegionGraph per branch, made as it is taken. A branch [l2, l3] after levels [l1] gives
-    the regions of levels [l1, l2, l3], its pairs and step sums included."""
+    the regions of levels [l1, l2, l3], its pairs and step sums included; a single branch runs as
+    that one schedule."""
     n = int(n_points)
     col = np.ascontiguousarray(colour, np.float32)
     a32 = np.ascontiguousarray(ea, np.int32)
@@ -900,31 +901,36 @@ def merge_regions_by_colour(n_points, ea, eb, steps_up, steps_down, colour, leve
             _reset_regions(count, csum, kernel_array(col, np.float32), label)
     live = (a32, b32, np.ones(len(a32), np.int64), up_q) if host else chunks
     up_q = chunks = None     # the first chunk holds it; it goes when the second round has re-keyed it
+    single = branches is not None and len(branches) == 1
+    if single:
+        # one branch: the whole schedule in one merge (the same regions), no rounds over nodes
+        levels, branches = list(levels) + list(branches[0]), None
     last_pass = [(0.0, 1)] if min_size > 1 else []
     schedule = [(float(v), 0) for v in levels] + (last_pass if branches is None else [])
     first = None if host else ("distinct" if distinct else "rekey")
     rounds, regions_left, live = _rounds(label, count, csum, state, live, n, schedule, host, first, 0, n,
                                          max_rounds, min_size, float(max_chroma_step), float(step_veto), settle)
-    if branches is not None and rounds:
-        # the pairs of the regions now: the last round's items keyed again (as a next round would)
+    if branches is not None:
+        # the pairs of the regions now: the last round's items keyed again (as a next round would;
+        # with no round run, the graph's edges)
         if host:
             items = _host_items(label, *live, n)
-        elif sum(c[4] for c in live):
+        elif not sum(c[4] for c in live):
+            items = (np.zeros(0, np.int64),) * 4
+        elif rounds:
             items = _gathered(_carry_and_rekey(state, live, n, 0))
         else:
-            items = (np.zeros(0, np.int64),) * 4
+            items = _host_items(np.arange(n), *_gathered(live), n)
     label, count, csum = np.asarray(to_numpy(label)).astype(np.int64), to_numpy(count), to_numpy(csum)
     # the rounds' pair lists and table go before the final pair table is built
     state = live = None
     if branches is None:
-        return _region_graph(label, count, csum, a32, b32, evidence)
+        graph = _region_graph(label, count, csum, a32, b32, evidence)
+        return iter([graph]) if single else graph
     roots = np.unique(label)                        # ascending point ids: the host rounds' ties
     node = np.searchsorted(roots, label)            # break as they would over the points
-    if rounds:
-        pairs = _node_items(items, roots)
-        del items
-    else:
-        pairs = _node_pairs(node, len(roots), a32, b32, evidence)
+    pairs = _node_items(items, roots)
+    del items
     # the edges between the regions now: every branch's regions are unions of them
     cross = np.flatnonzero(node[a32] != node[b32])
     ca, cb = a32[cross], b32[cross]
@@ -964,30 +970,12 @@ def _gathered(chunks):
 
 
 def _node_items(items, roots):
-    """Round items keyed by root point ids -> node pairs as _node_pairs gives them (a < b,
-    sorted by (a, b), each pair once: the items hold each pair of regions once)."""
+    """Round items keyed by root point ids -> the pairs of their nodes (indices into ``roots``):
+    a < b, sorted by (a, b), each pair once (the items hold each pair of regions once)."""
     a, b = np.searchsorted(roots, items[0]), np.searchsorted(roots, items[1])
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     order = np.argsort(lo * len(roots) + hi, kind="stable")
     return lo[order], hi[order], items[2][order], items[3][order]
-
-
-def _node_pairs(node, n_nodes, ea, eb, evidence):
-    """The pairs of regions (nodes 0..n_nodes-1, ``node`` per point) that graph edges join, as a
-    merge round's items: (a, b, edges, quantised step sums), a < b, sorted."""
-    keys, steps = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
-    for start in range(0, len(ea), EDGE_CHUNK):
-        chunk = slice(start, start + EDGE_CHUNK)
-        la, lb = node[ea[chunk]], node[eb[chunk]]
-        at = np.flatnonzero(la != lb)
-        keys.append(np.minimum(la[at], lb[at]).astype(np.int64) * n_nodes + np.maximum(la[at], lb[at]))
-        steps.append(_quantised_steps(lambda index: evidence(at[index] + start), len(at)).astype(np.int64))
-    key, step = np.concatenate(keys), np.concatenate(steps)
-    del keys, steps
-    uk, inv = np.unique(key, return_inverse=True)
-    inv = inv.ravel()
-    return (uk // n_nodes, uk % n_nodes, np.bincount(inv, minlength=len(uk)).astype(np.int64),
-            np.bincount(inv, weights=step, minlength=len(uk)).astype(np.int64))
 
 
 def _rounds(label, count, csum, state, live, n, schedule, host, first, rounds, regions_left, max_rounds,
@@ -1016,7 +1004,7 @@ def _rounds(label, count, csum, state, live, n, schedule, host, first, rounds, r
 def _merge_nodes(count, csum, pairs, schedule, host, rounds, regions_left, max_rounds, min_size, max_chroma, veto,
                  settle):
     """The merge rounds of ``schedule`` over regions as nodes (``count``, ``csum`` per node,
-    ``pairs`` as _node_pairs gives them: distinct and sorted), with the kernels or on the host.
+    ``pairs`` from _node_items: distinct and sorted), with the kernels or on the host.
     Returns (root node per node, count and colour sum per node, valid at roots) as numpy int64."""
     n = len(count)
     count = np.array(count, np.int64)

@@ -102,9 +102,15 @@ def excess_green(mean):
     """ExG = 2g - r - b of the chromatic coordinates of region mean colours (Woebbecke et al.
     1995; kernels.vegetation): scale free, so a lawn in shadow scores as in sun. Regions darker
     than GREEN_DARK (R + G + B, 8-bit units) are taken at that brightness: noise, not green."""
-    mean = np.asarray(mean, np.float64)
-    total = np.maximum(mean.sum(axis=1), GREEN_DARK)
+    mean, total = _with_brightness(mean)
     return (2.0 * mean[:, 1] - mean[:, 0] - mean[:, 2]) / total
+
+
+def _with_brightness(mean):
+    """(float64 region mean colours, their R + G + B floored at GREEN_DARK): the denominator of
+    chromatic coordinates that dark regions' noise does not blow up."""
+    mean = np.asarray(mean, np.float64)
+    return mean, np.maximum(mean.sum(axis=1), GREEN_DARK)
 
 
 GREEN_DOMINANCE = 0.05   # chromatic g above both r and b by this much: vegetation's colour
@@ -116,8 +122,7 @@ def green_dominant(mean):
     (vegetation reflects most in green). Yellow and white paint, asphalt and concrete are not,
     though excess green (2g - r - b) scores yellow as green. Regions darker than GREEN_DARK
     (R + G + B, 8-bit units) are taken at that brightness."""
-    mean = np.asarray(mean, np.float64)
-    total = np.maximum(mean.sum(axis=1), GREEN_DARK)
+    mean, total = _with_brightness(mean)
     r, g, b = (mean[:, c] / total for c in range(3))
     return g - np.maximum(r, b) > GREEN_DOMINANCE
 
@@ -332,8 +337,8 @@ def _absorb_enclosed(graph, road, kerb, w, rounds=3, vegetation=None):
                         for (g, s), o in zip(sides, (pb, pa)))
         kerb_road = sum(np.bincount(g[s & road[o]], weights=kerb[s & road[o]], minlength=ng)
                         for (g, s), o in zip(sides, (pb, pa)))
-        size = np.bincount(group[group >= 0], weights=graph.count[group >= 0], minlength=ng)
         inside = group >= 0
+        size = np.bincount(group[inside], weights=graph.count[inside], minlength=ng)
         verdure = np.bincount(group[inside & green], weights=graph.count[inside & green], minlength=ng)
         take = (onto_road >= w.absorb * np.maximum(boundary, 1e-9)) & (kerb_road <= 0.2 * onto_road) \
             & (size <= w.absorb_max * graph.count[road].sum()) & (verdure < ABSORB_MAX_VEGETATION * size)

@@ -249,17 +249,12 @@ class RoadRegions(Stage):
         # merge's work, is shared): a point is road when most of their road choices say so
         levels = [colour_noise * f for f in o.colour_levels]
         scales = sorted(o.ensemble)
-        branches = [[v * scale for v in levels[1:]] for scale in scales]
+        graphs = regions.merge_regions_by_colour(n, ea, eb, evidence, None, colour_f, levels[:1], o.max_chroma_step,
+                                                 o.step_veto, o.min_region_points, settle=o.settle,
+                                                 branches=[[v * scale for v in levels[1:]] for scale in scales])
         if len(scales) == 1:
-            # one segmentation: the whole schedule in one merge (the same regions as its branch)
-            graphs = [regions.merge_regions_by_colour(n, ea, eb, evidence, None, colour_f, levels[:1] + branches[0],
-                                                      o.max_chroma_step, o.step_veto, o.min_region_points,
-                                                      settle=o.settle)]
+            graphs = [next(graphs)]
             del evidence, steps        # what the cut does not read goes before it
-        else:
-            graphs = regions.merge_regions_by_colour(n, ea, eb, evidence, None, colour_f, levels[:1], o.max_chroma_step,
-                                                     o.step_veto, o.min_region_points, settle=o.settle,
-                                                     branches=branches)
         votes = np.zeros(n, np.int32)
         middle = len(scales) // 2
         for number, graph in enumerate(graphs):
