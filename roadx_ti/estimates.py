@@ -18,6 +18,7 @@ tile), logged, and written to the summary JSON:
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -94,14 +95,41 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     return out
 
 
-def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, chunk_points: int = 1_000_000) -> dict:
+@dataclass(frozen=True)
+class CellCounts:
+    """Points per occupied plan cell of ``cell`` m, in world coordinates: cell (ix[i], iy[i]) is
+    [ix * cell, (ix + 1) * cell) x [iy * cell, (iy + 1) * cell) and holds counts[i] points (ascending
+    keys, every cell once)."""
+    cell: float
+    ix: np.ndarray         # int64
+    iy: np.ndarray         # int64
+    counts: np.ndarray     # int64
+
+    @classmethod
+    def from_keys(cls, keys: np.ndarray, counts: np.ndarray, cell: float) -> "CellCounts":
+        keys = np.asarray(keys, np.int64)
+        iy = (keys & 0xFFFFFFFF).astype(np.uint32).view(np.int32).astype(np.int64)
+        return cls(float(cell), keys >> 32, iy, np.asarray(counts, np.int64))
+
+
+def _merge_counts(parts: list) -> tuple[np.ndarray, np.ndarray]:
+    """(keys, counts) summed over (keys, counts) pieces, each key once, ascending."""
+    keys = np.concatenate([k for k, _ in parts])
+    counts = np.concatenate([c for _, c in parts])
+    unique, inverse = np.unique(keys, return_inverse=True)
+    return unique, np.bincount(inverse.ravel(), weights=counts, minlength=len(unique)).astype(np.int64)
+
+
+def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, chunk_points: int = 1_000_000,
+                    with_cells: bool = False):
     """Survey-wide estimates of a catalog of files (roadx_ti.tiling.catalog) before tiling, equal
     in kind to ``measure`` on the whole survey in memory: every file is streamed once in chunks;
     the plan area is the occupied AREA_CELL cells of all its points, and the other estimates come
     from a spatially uniform sample of about ``sample_points`` points (a point is drawn by a hash
     of its coordinates: the same sample whatever the files' point order or chunking; runs of
     consecutive points are no such sample: exports written object by object or line by line
-    gave a third of the true area)."""
+    gave a third of the true area). ``with_cells``: return (estimates, CellCounts of AREA_CELL),
+    the points per occupied cell, from the same pass (the tile planner places tiles by them)."""
     import laspy
 
     from roadx_ti import io
@@ -112,13 +140,15 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
 
     total = sum(f.count for f in files)
     if total == 0:
-        return {"points": 0, "plan_area_m2": 0.0, "density_per_m2": 0.0}
+        empty = {"points": 0, "plan_area_m2": 0.0, "density_per_m2": 0.0}
+        none = np.zeros(0, np.int64)
+        return (empty, CellCounts(AREA_CELL, none, none, none)) if with_cells else empty
     read_origin = np.asarray(read_origin, np.float64)
     ratio = min(1.0, sample_points / total)
     cells, xyz_parts, rgb_parts, return_parts = [], [], [], []
 
     def take(world, rgb, returns):
-        cells.append(np.unique(_cell_keys(world[:, :2], AREA_CELL)))
+        cells.append(np.unique(_cell_keys(world[:, :2], AREA_CELL), return_counts=True))
         # the hash of the exact world coordinates (not float32 local ones: exact at any distance)
         pick = hashed_sample(coordinate_cells(world, np.zeros(3), 0.01), ratio).astype(bool)
         xyz_parts.append((world[pick] - read_origin).astype(np.float32))   # local: only the sample
@@ -136,11 +166,11 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
                     returns = np.column_stack([np.asarray(record.return_number),
                                                np.asarray(record.number_of_returns)]).astype(np.uint8)
                     take(world, rgb, returns)
-            cells[:] = [np.unique(np.concatenate(cells))]   # occupied cells so far, once each
+            cells[:] = [_merge_counts(cells)]   # occupied cells so far, once each
         else:     # the other formats: read whole
             cloud = io.read(f.path, origin=read_origin)
             take(cloud.world_xyz(), cloud.rgb, cloud.returns)
-    occupied = np.unique(np.concatenate(cells))
+    occupied, per_cell = _merge_counts(cells)
     area = float(len(occupied)) * AREA_CELL * AREA_CELL
     rgb = None
     if all(r is not None for r in rgb_parts):
@@ -154,7 +184,7 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
     out = measure(sample, survey_points=total, area=area)
     out["sample_points"] = int(sample.n)
     out["area_cell_m"] = AREA_CELL
-    return out
+    return (out, CellCounts.from_keys(occupied, per_cell, AREA_CELL)) if with_cells else out
 
 
 def _cell_keys(xy: np.ndarray, cell: float) -> np.ndarray:

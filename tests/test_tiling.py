@@ -56,6 +56,65 @@ def test_every_point_has_exactly_one_core_and_windows_hold_their_neighbours():
     assert np.allclose(plan.x_edges / 7.3, np.round(plan.x_edges / 7.3))
 
 
+def _cells_of(x, y, cell=1.0):
+    """estimates.CellCounts of world points (as measure_catalog counts them)."""
+    from roadx_ti.estimates import CellCounts, _cell_keys
+
+    keys, counts = np.unique(_cell_keys(np.column_stack([x, y]), cell), return_counts=True)
+    return CellCounts.from_keys(keys, counts, cell)
+
+
+def _occupied_scan(x, y):
+    """plan_tiles' scan: the core cells the points occupy (what scan_cells reads from a file)."""
+    def scan(f, grid):
+        col, row = grid.cells(x, y)
+        return np.unique(grid.key(col, row))
+    return scan
+
+
+def test_aligned_tiles_read_fewer_points_and_count_their_windows_exactly():
+    """The default tiles are placed where the points are: two dense blocks that a grid anchored at
+    multiples of the tile size cuts into slivers read far fewer window points on the aligned grid,
+    no window over the cap; the planner's window counts equal the points the plan's windows hold."""
+    from roadx_ti.tiling.plan import TILE_COST_POINTS, _window_points, align_tiles
+
+    rng = np.random.default_rng(3)
+    # two 250 x 230 m blocks, 5 m apart, starting 190 m past a multiple of 200 m (as the uav-road
+    # survey lies on 200 m tiles), a stray point 3 km off
+    blocks = [(500190.0, 4500190.0), (500445.0, 4500190.0)]
+    x = np.concatenate([rng.uniform(bx, bx + 250.0, 60_000) for bx, _ in blocks] + [[503000.5]])
+    y = np.concatenate([rng.uniform(by, by + 230.0, 60_000) for _, by in blocks] + [[4501000.5]])
+    cells, buffer = _cells_of(x, y), 30.0
+    files = [tiling.CatalogFile("a.laz", (x.min(), y.min(), x.max(), y.max()), len(x))]
+
+    def read(size, anchor):
+        plan = tiling.plan_tiles(files, size, buffer, scan=_occupied_scan(x, y), anchor=anchor)
+        windows = [int(tiling.tile._inside(x, y, t.window).sum()) for t in plan.tiles]
+        cores = sum(int(tiling.tile._inside(x, y, t.core).sum()) for t in plan.tiles)
+        assert cores == len(x)           # every point in one core, whatever the anchor
+        return plan, windows
+
+    world, world_windows = read(200.0, (0.0, 0.0))
+    size, anchor = align_tiles(cells, 200.0, buffer, window_cap=100_000)
+    aligned, aligned_windows = read(size, anchor)
+    # the planner's count is the plans' own (windows on whole 5 m cells: exact)
+    for plan, windows in ((world, world_windows), (aligned, aligned_windows)):
+        counted = _window_points(cells.ix, cells.iy, cells.counts, cells.cell, plan.tile_size,
+                                 plan.grid.x0, plan.grid.y0, buffer)
+        assert counted == (sum(windows), len(plan.tiles), max(windows))
+    assert max(aligned_windows) <= 100_000
+    assert sum(aligned_windows) + TILE_COST_POINTS * len(aligned.tiles) < \
+        sum(world_windows) + TILE_COST_POINTS * len(world.tiles)
+    assert sum(aligned_windows) < 0.8 * sum(world_windows)
+    # a tighter cap: smaller windows, still within it
+    small, small_anchor = align_tiles(cells, 200.0, buffer, window_cap=40_000)
+    assert small < size
+    assert _window_points(cells.ix, cells.iy, cells.counts, cells.cell, small, *small_anchor, buffer)[2] <= 40_000
+    # the same cells give the same plan (deterministic); a cap no grid meets keeps the density's size
+    assert align_tiles(cells, 200.0, buffer, window_cap=100_000) == (size, anchor)
+    assert align_tiles(cells, 200.0, buffer, window_cap=10) == (200.0, (0.0, 0.0))
+
+
 def test_default_buffer_follows_the_stages_reach():
     ground = config.load(REPO / "configs" / "ground.yaml").stage_list()
     assert tiling.default_buffer(ground)[0] == 30.0          # the cloth's least span (> 15 x 1 m)

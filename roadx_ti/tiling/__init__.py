@@ -13,8 +13,10 @@ Dask session and its checks), ``split`` (each file decoded once into the tiles' 
 How a run goes:
 1. ``catalog``: the input files (a folder gives its point-cloud files sorted by name) with their
    header bounds; input order = catalog order, each file's points in file order.
-2. ``plan_tiles``: core tiles on a grid anchored at multiples of the tile size; a tile exists
-   where some file's header box meets its core. Each tile reads core + ``buffer`` on every side,
+2. ``plan_tiles``: core tiles on a grid anchored at multiples of a given ``--tile-size``; by
+   default as large as the memory allows and placed where the points are (``align_tiles``: the
+   size and grid offset that read the fewest window points, from the survey estimates' points per
+   occupied cell); a tile exists where some file's header box meets its core. Each tile reads core + ``buffer`` on every side,
    only from the files whose box meets that window (io.read(path, bounds=window, origin=shared)).
    A LAS/LAZ file that several tiles read is decoded once beforehand (``split_catalog``), its
    records kept per tile in a scratch folder beside the output; a tile reads them back
@@ -41,7 +43,7 @@ from roadx_ti.tiling.errors import ClusterError, TileError
 from roadx_ti.tiling.executors import RETRIES, backend_ready, make_jobs, run_in_process, run_on_dask
 from roadx_ti.tiling.merge import MERGE_CHUNK_POINTS, reconcile_segments, write_outputs
 from roadx_ti.tiling.plan import (MAX_HEADER_CELLS, MAX_LISTED_EDGES, MAX_WINDOW_POINTS, SCAN_CELLS, TARGET_TILE_POINTS,
-                                  TILE_SIZE_STEP, budget_tile_size, catalog_origin,
+                                  TILE_SIZE_STEP, align_tiles, budget_tile_size, catalog_origin,
                                   CoreGrid, Tile, TilePlan, default_tile_size, plan_tiles, scan_cells, tile_lookup)
 from roadx_ti.tiling.reach import CLOTH_SPAN, MIN_BUFFER, default_buffer, stage_reach
 from roadx_ti.tiling.run import MIN_POINTS_PER_TILE, MODES, run_catalog
@@ -52,7 +54,7 @@ __all__ = ["CLOTH_SPAN", "CONNECT_TIMEOUT", "DISTANCE_BINS", "ENVIRONMENT_PACKAG
            "MAX_LISTED_EDGES", "MAX_WINDOW_POINTS", "MERGE_CHUNK_POINTS", "MIN_BUFFER", "MIN_POINTS_PER_TILE", "MMAP_THRESHOLD", "MODES",
            "RETRIES", "SCAN_CELLS", "Split", "TARGET_TILE_POINTS", "TILE_SIZE_STEP", "WORKER_TIMEOUT",
            "CatalogFile", "ClusterError", "CoreGrid", "FilePart", "Tile", "TileError", "TileJob", "TilePlan",
-           "TileResult", "backend_ready", "budget_tile_size", "catalog", "catalog_origin", "compare_outputs", "concat_clouds", "default_buffer",
+           "TileResult", "align_tiles", "backend_ready", "budget_tile_size", "catalog", "catalog_origin", "compare_outputs", "concat_clouds", "default_buffer",
            "default_tile_size", "environment", "folder_files", "make_jobs", "plan_tiles", "reconcile_segments",
            "run_catalog", "run_in_process", "run_on_dask", "run_tile", "scan_cells", "segment_agreement",
            "split_catalog", "stage_reach", "tile_lookup", "unreadable", "write_outputs"]

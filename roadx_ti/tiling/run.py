@@ -14,7 +14,7 @@ from roadx_ti.tiling.catalogs import LAS_SUFFIXES, catalog, check_compatible
 from roadx_ti.tiling.cluster import _DaskSession
 from roadx_ti.tiling.executors import backend_ready, make_jobs, run_in_process, run_on_dask
 from roadx_ti.tiling.merge import reconcile_segments, write_outputs
-from roadx_ti.tiling.plan import (MAX_WINDOW_POINTS, Tile, budget_tile_size, catalog_origin, default_tile_size,
+from roadx_ti.tiling.plan import (MAX_WINDOW_POINTS, Tile, align_tiles, budget_tile_size, catalog_origin, default_tile_size,
                                   plan_tiles, scan_cells, TooManyTiles)
 from roadx_ti.tiling.reach import default_buffer
 from roadx_ti.tiling.split import Split, split_catalog
@@ -75,22 +75,30 @@ def memory_tile_size(cfg, files, survey: dict, buffer: float, workers, scheduler
     area and the densest file's over its header box (a box stretched by strays only underrates
     it; a survey of dense and sparse files must not size tiles by the mean). An existing cluster's
     workers have memory this process cannot see: cores of about TARGET_TILE_POINTS there."""
-    from roadx_ti import memory
-
     if scheduler:
         return default_tile_size(files)
+    density, window = memory_window(cfg, files, survey, workers)
+    if not density > 0:
+        return default_tile_size(files)
+    return budget_tile_size(density, buffer, window)
+
+
+def memory_window(cfg, files, survey: dict, workers) -> tuple[float, int]:
+    """(density per m2 where the survey is densest, points a tile's window may hold within the
+    memory each tile may use): memory_tile_size's two figures."""
+    from roadx_ti import memory
+
     boxes = [f.count / ((f.bounds[2] - f.bounds[0]) * (f.bounds[3] - f.bounds[1])) for f in files
              if f.count and f.bounds[2] > f.bounds[0] and f.bounds[3] > f.bounds[1]]
     density = max([survey.get("density_per_m2") or 0.0] + boxes)
     if not density > 0:
-        return default_tile_size(files)
+        return 0.0, MAX_WINDOW_POINTS
     # the densest tiles hold the most points per window and keep the smallest share of them:
     # their estimate (points x bytes at that share) is the largest of the survey's
     kept = memory.kept_share(cfg, 0, density)
     budget = memory.run_budget() / max(1, int(workers or 1))
-    window = min(MAX_WINDOW_POINTS,
-                 int(memory.points_that_fit(cfg.pipeline, int(budget), kept) / memory.TILE_OVERHEAD))
-    return budget_tile_size(density, buffer, window)
+    return density, min(MAX_WINDOW_POINTS,
+                        int(memory.points_that_fit(cfg.pipeline, int(budget), kept) / memory.TILE_OVERHEAD))
 
 
 def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, scheduler: str | None = None,
@@ -171,13 +179,18 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     if not backend_ready():
         from roadx_ti import backend
         backend.init(cfg.backend, threads=cfg.threads)
-    survey = measure_catalog(files, catalog_origin(files))
+    survey, cells = measure_catalog(files, catalog_origin(files), with_cells=True)
     estimate_s = time.perf_counter() - t_est
     log.info("survey estimates (%d sampled points) in %.2f s: %s", survey.get("sample_points", 0), estimate_s,
              {k: v for k, v in survey.items() if k not in ("sample_points",)})
     if plan is None:
         tile_size = memory_tile_size(cfg, files, survey, buffer, workers, scheduler)
-        plan = plan_tiles(files, tile_size, buffer, scan=scan_cells)
+        anchor = (0.0, 0.0)
+        if not scheduler:
+            # sized and placed by where the points are, within the same memory per window
+            tile_size, anchor = align_tiles(cells, tile_size, buffer, memory_window(cfg, files, survey, workers)[1])
+        plan = plan_tiles(files, tile_size, buffer, scan=scan_cells, anchor=anchor)
+    del cells
     log.info("%d file(s), %d points; %d tile(s) of %s m with a %.1f m buffer", len(files), total_points,
              len(plan.tiles), "all" if not np.isfinite(plan.tile_size) else f"{plan.tile_size:g}", plan.buffer)
     results: dict[int, TileResult] = {}
