@@ -293,6 +293,32 @@ def test_copc_catalog_labels_equal_the_laz_catalog(shared_data, tmp_path):
 
 # --------------------------------------------------------------------- segments across borders
 
+def test_reconciled_segment_ids_follow_shared_points_transitively():
+    """Segments linked through shared points get one id, also through a third tile; the ids are
+    compact, in order of first appearance (tiles in order, each tile's segments ascending); a
+    tile with no segments keeps its -1s."""
+    from types import SimpleNamespace as NS
+
+    from roadx_ti.tiling.merge import reconcile_segments
+
+    def tile(segments, seg_ids, buffer_in, core_in):
+        return NS(segments=segments, parts={0: NS(segment_id=np.array(seg_ids, np.int32))},
+                  buffer_in=buffer_in, core_in=core_in)
+    i32 = lambda *v: np.array(v, np.int32)     # noqa: E731
+    # buffer_in[u]: my ids of my buffer points in u's core; u's core_in[me]: u's ids of the same
+    # points. Links: 0/2 = 1/0 (one of the two shared points unlabelled in tile 1); 1/1 = 2/0 = 0/1
+    results = {
+        0: tile(3, [2, 0, 1, -1, 2], buffer_in={1: i32(2, 2)}, core_in={1: i32(2), 2: i32(1)}),
+        1: tile(2, [0, 1, 1], buffer_in={0: i32(0), 2: i32(1)}, core_in={0: i32(0, -1)}),
+        2: tile(1, [0, 0], buffer_in={0: i32(0)}, core_in={1: i32(0)}),
+        3: tile(0, [-1, -1], buffer_in={}, core_in={}),
+    }
+    info = reconcile_segments(NS(tiles=[0, 1, 2, 3]), results)
+    assert info == {"local_segments": 6, "merges": 3, "segments": 3}
+    ids = {t: results[t].parts[0].segment_id.tolist() for t in results}
+    assert ids == {0: [2, 0, 1, -1, 2], 1: [2, 1, 1], 2: [1, 1], 3: [-1, -1]}
+
+
 def test_segments_cut_by_tile_borders_keep_one_id(shared_data, tmp_path):
     """Roof segments (seeds + growing, no ground stage: cheap) over two files in 30 m tiles."""
     cfg = config.from_mapping({"pipeline": "roof", "backend": "cpu",

@@ -15,22 +15,18 @@ MERGE_CHUNK_POINTS = 1_000_000
 
 
 def reconcile_segments(plan: TilePlan, results: dict) -> dict:
-    """Give segments cut by core borders one id: union-find over (tile, local segment) nodes that
-    share a point (labelled in both tiles), then compact global ids in tile order. Rewrites the
-    parts' segment ids in place; returns counts for the summary."""
+    """Give segments cut by core borders one id: connected components over (tile, local segment)
+    nodes that share a point (labelled in both tiles), then compact global ids in order of first
+    appearance, tiles in order and each tile's segments ascending. Rewrites the parts' segment ids
+    in place; returns counts for the summary."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
     base, total = {}, 0
     for t in range(len(plan.tiles)):
         base[t] = total
         total += results[t].segments
-    parent = np.arange(total, dtype=np.int64)
-
-    def find(a):
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
-    links = 0
+    ends_a, ends_b = [], []
     for t, res in results.items():
         for u, mine in res.buffer_in.items():
             other = results[u].core_in.get(t)
@@ -40,27 +36,38 @@ def reconcile_segments(plan: TilePlan, results: dict) -> dict:
                 raise TileError(f"tiles {t} and {u} disagree on the points they share "
                                 f"({len(mine)} vs {len(other)}); no output was written")
             both = (mine >= 0) & (other >= 0)
-            pairs = np.unique(np.column_stack([base[t] + mine[both], base[u] + other[both]]), axis=0)
-            for a, b in pairs:
-                ra, rb = find(a), find(b)
-                if ra != rb:
-                    parent[max(ra, rb)] = min(ra, rb)
-                    links += 1
-    global_id = {}
+            pairs = np.unique(np.column_stack([base[t] + mine[both].astype(np.int64),
+                                               base[u] + other[both].astype(np.int64)]), axis=0)
+            ends_a.append(pairs[:, 0])
+            ends_b.append(pairs[:, 1])
+    a = np.concatenate(ends_a) if ends_a else np.zeros(0, np.int64)
+    b = np.concatenate(ends_b) if ends_b else np.zeros(0, np.int64)
+    components, component = connected_components(
+        coo_matrix((np.ones(len(a), np.int8), (a, b)), shape=(total, total)), directed=False)
+    # the segments in use, in tile order: a component's global id is its rank of first appearance
+    used_nodes, used_of = [], {}
     for t in range(len(plan.tiles)):
         res = results[t]
         if not res.segments:
             continue
-        local_to_global = np.full(res.segments, -1, np.int32)
         used = np.unique(np.concatenate([p.segment_id for p in res.parts.values()] or [np.zeros(0, np.int32)]))
-        for s in used[used >= 0]:
-            root = find(base[t] + int(s))
-            local_to_global[s] = global_id.setdefault(root, len(global_id))
+        used_of[t] = used[used >= 0].astype(np.int64)
+        used_nodes.append(base[t] + used_of[t])
+    nodes = np.concatenate(used_nodes) if used_nodes else np.zeros(0, np.int64)
+    first_of, first = np.unique(component[nodes], return_index=True)
+    rank = np.empty(components, np.int64)
+    rank[first_of[np.argsort(first, kind="stable")]] = np.arange(len(first_of))
+    for t, used in used_of.items():
+        res = results[t]
+        local_to_global = np.full(res.segments, -1, np.int32)
+        local_to_global[used] = rank[component[base[t] + used]]
         for part in res.parts.values():
             seg = part.segment_id
             part.segment_id = np.where(seg >= 0, local_to_global[np.maximum(seg, 0)], -1).astype(np.int32)
         res.buffer_in, res.core_in = {}, {}
-    return {"local_segments": total, "merges": links, "segments": len(global_id)}
+    for res in results.values():
+        res.buffer_in, res.core_in = {}, {}
+    return {"local_segments": total, "merges": int(total - components), "segments": int(len(first_of))}
 
 
 class _Merge:
