@@ -742,6 +742,18 @@ def case_point_count_beyond_the_data(d):
     return _tiny(d, _header_field(d, "count.las", 247, "<Q", 5000), message="the header says 5000 points")
 
 
+def case_laz_points_offset_one_byte_off(d):
+    """A LAZ whose offset to the points is one byte too large, so the chunk table's offset read
+    there is garbage (lazrs allocated gigabytes, 10 s of a 19 kB file's read, before failing): exit 1,
+    'corrupt', from the header and those 8 bytes."""
+    src = write_las(d / "in" / "shifted.laz", bumpy_ground(1500))
+    data = bytearray(src.read_bytes())
+    offset = struct.unpack_from("<I", data, 96)[0]
+    struct.pack_into("<I", data, 96, offset + 1)
+    src.write_bytes(bytes(data))
+    return _tiny(d, src, message="chunk table offset")
+
+
 CASES = {name[len("case_"):]: fn for name, fn in sorted(globals().items()) if name.startswith("case_")}
 
 

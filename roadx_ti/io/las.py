@@ -95,6 +95,16 @@ def check_structure(path) -> None:
             if pos > len(block):
                 raise fail(path, f"invalid VLR {i + 1} of {vlrs}: its {length} bytes run past the start of "
                                  "the points")
+        if head[104] & 0xC0:
+            # LAZ: the points start with the chunk table's offset (-1: given at the file's end);
+            # a wrong one made lazrs allocate gigabytes before failing (10 s of zeroed pages for a
+            # 19 kB file whose offset to the points was one byte off)
+            f.seek(offset)
+            raw = f.read(8)
+            table = struct.unpack("<q", raw)[0] if len(raw) == 8 else None
+            if table is None or (table != -1 and not offset + 8 <= table <= size - 8):
+                raise fail(path, "truncated or corrupt LAS/LAZ file (its chunk table offset "
+                                 f"{'is missing' if table is None else table} lies outside the {size}-byte file)")
     point_format = fmt_byte & 0x3F
     compressed = bool(fmt_byte & 0xC0)
     if point_format not in POINT_SIZES:
