@@ -76,8 +76,8 @@ def _neighbourhood_median(nbr: ti.types.ndarray(dtype=ti.i32, ndim=2),
 
 @ti.kernel
 def _mode_heights(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.types.ndarray(dtype=ti.i32, ndim=2),
-                  grad: ti.types.ndarray(dtype=ti.f32, ndim=2), width: ti.f32, steps: ti.i32,
-                  out: ti.types.ndarray(dtype=ti.f32, ndim=1)):
+                  grad: ti.types.ndarray(dtype=ti.f32, ndim=2), width: ti.types.ndarray(dtype=ti.f32, ndim=1),
+                  steps: ti.i32, out: ti.types.ndarray(dtype=ti.f32, ndim=1)):
     for i in range(xyz.shape[0]):
         zc = ti.Vector([0.0] * MAX_ROW, ti.f32)
         zc[0] = xyz[i, 2]
@@ -95,7 +95,7 @@ def _mode_heights(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.types.nda
             near = ti.Vector([0.0] * MAX_ROW, ti.f32)
             m = 0
             for a in range(count):
-                if ti.abs(zc[a] - z) <= width:
+                if ti.abs(zc[a] - z) <= width[i]:
                     near[m] = zc[a]
                     m += 1
             if m > 0:
@@ -162,18 +162,19 @@ def neighbourhood_median(values, neighbors):
     return like_input(out, values)
 
 
-def mode_heights(xyz, neighbors, gradient, width: float, steps: int = 3):
+def mode_heights(xyz, neighbors, gradient, width, steps: int = 3):
     """float32 (n,): edge-preserving filtered height of every point (see the module docstring).
     ``gradient`` float32 (n, 2) is the local slope used to compare heights at one place;
     ``width`` (m) the window of heights that count as the same surface (about 2.5 x the height
-    noise)."""
+    noise): one value, or one per point (float32 (n,): noise that varies across a survey)."""
     pts = kernel_array(xyz, np.float32)
     n = length(pts)
     nbr = kernel_array(neighbors, np.int32)
     _check_rows(nbr, n)
     out = output_array(ti.f32, (n,), xyz)
     if n:
-        _mode_heights(pts, nbr, kernel_array(gradient, np.float32), float(width), int(steps), out)
+        widths = np.full(n, width, np.float32) if np.ndim(width) == 0 else width
+        _mode_heights(pts, nbr, kernel_array(gradient, np.float32), kernel_array(widths, np.float32), int(steps), out)
     return like_input(out, xyz)
 
 

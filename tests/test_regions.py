@@ -44,6 +44,36 @@ def test_mode_heights_keep_a_kerb_and_remove_noise(ti_arch):
     assert np.mean(np.abs(residual[near & side]) < 0.06) > 0.9
 
 
+
+def test_mode_heights_take_one_window_per_point(ti_arch):
+    """A window per point (noise that varies across a survey): the same heights as one window where
+    all are equal; a point whose window is zero keeps its neighbourhood's median."""
+    xyz = _plane(3000, noise=0.03, step=0.12)
+    idx, _ = knn(xyz, 12)
+    grad = regions.coarse_gradient(xyz, 2.5)
+    one = regions.mode_heights(xyz, idx, grad, 0.075)
+    assert np.array_equal(regions.mode_heights(xyz, idx, grad, np.full(len(xyz), 0.075, np.float32)), one)
+    widths = np.full(len(xyz), 0.075, np.float32)
+    widths[::2] = 0.0
+    mixed = regions.mode_heights(xyz, idx, grad, widths)
+    plain = regions.mode_heights(xyz, idx, grad, 0.075, steps=0)      # the neighbourhood medians
+    assert np.array_equal(mixed[1::2], one[1::2])
+    assert np.allclose(mixed[::2], plain[::2], atol=1e-6)
+
+
+def test_block_spread_is_each_blocks_median_with_the_runs_value_for_small_blocks():
+    from roadx_ti.stages.road_regions import MIN_BLOCK_EDGES, block_spread
+
+    rng = np.random.default_rng(4)
+    big = MIN_BLOCK_EDGES + 11
+    values = np.concatenate([rng.normal(0, 0.02, big), rng.normal(0, 0.05, big), rng.normal(0, 1.0, 10)])
+    block = np.concatenate([np.full(big, 7), np.full(big, -3), np.full(10, 5)]).astype(np.int64)
+    order = rng.permutation(len(values))
+    got = block_spread(values[order], block[order], 0.5, 2.0)
+    for b, part in ((7, slice(0, big)), (-3, slice(big, 2 * big))):
+        assert np.allclose(got[block[order] == b], 2.0 * np.median(np.abs(values[part])))
+    assert np.all(got[block[order] == 5] == 0.5)       # too few edges: the run's value
+
 def test_graph_edges_hold_each_undirected_edge_once():
     xyz = _plane(500)
     idx, dist = knn(xyz, 6)

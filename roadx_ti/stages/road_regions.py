@@ -83,6 +83,11 @@ class RoadRegionsOptions(StageOptions):
                                         "or sidewalk with any small change of the input (a delivery at 1 mm, "
                                         "another sample); the majority of [0.7, 0.85, 1.0, 1.15, 1.3] varies "
                                         "less, at about 1.8 x this stage's time (ACCURACY.md's notes)")
+    noise_block: float | None = Field(None, gt=0, description="measure the height noise and the filtered "
+                                      "steps' spread per plan block of this edge (m) rather than once over the "
+                                      "run: the filter's window and the kerb evidence follow noise that varies "
+                                      "across a survey (ACCURACY.md's notes: a noisy scene beside a quiet one "
+                                      "lost streets); None: once")
     height_noise: float | None = Field(None, gt=0, description="height noise (m); None: measured")
     colour_noise: float | None = Field(None, gt=0, description="colour noise of the median-filtered "
                                        "colours (8-bit units); None: measured")
@@ -108,15 +113,16 @@ def kerb_evidence(steps, sigma, kerb_min, kerb_max, prior):
     kerb (height uniform in [kerb_min, kerb_max]) rather than lying on one surface (Gaussian of
     the measured spread, with a wider tail for outliers). Elementwise, in chunks (roadx_ti.chunks)."""
     r = np.asarray(steps, np.float64)
-    sigma = max(float(sigma), 1e-4)
+    sigma = np.maximum(np.asarray(sigma, np.float64), 1e-4)      # one value, or one per edge
     span = kerb_max - kerb_min
-    lo, hi = kerb_min / sigma, kerb_max / sigma
     up, down = np.empty(len(r)), np.empty(len(r))
 
     def part(start, stop):
-        z = r[start:stop] / sigma
+        s = sigma if sigma.ndim == 0 else sigma[start:stop]
+        lo, hi = kerb_min / s, kerb_max / s
+        z = r[start:stop] / s
         # Gaussian densities and cdfs as plain ufuncs (scipy.special: no distribution overhead)
-        flat = (0.9 * np.exp(-0.5 * z * z) + 0.1 / 3.0 * np.exp(-0.5 * z * z / 9.0)) / (sigma * np.sqrt(2.0 * np.pi))
+        flat = (0.9 * np.exp(-0.5 * z * z) + 0.1 / 3.0 * np.exp(-0.5 * z * z / 9.0)) / (s * np.sqrt(2.0 * np.pi))
         a = (1.0 - prior) * flat
         b = 0.5 * prior * ((ndtr(z - lo) - ndtr(z - hi)) / span)
         c = 0.5 * prior * ((ndtr(-z - lo) - ndtr(-z - hi)) / span)
@@ -125,6 +131,24 @@ def kerb_evidence(steps, sigma, kerb_min, kerb_max, prior):
         down[start:stop] = c / total
     over_chunks(part, len(r))
     return up, down
+
+
+# a block needs this many graph edges for a noise of its own; fewer take the run's value
+MIN_BLOCK_EDGES = 2000
+
+
+def block_spread(values, block, overall: float, scale: float) -> np.ndarray:
+    """float64 per item: ``scale`` x the median |value| of the items of its block (int64 keys),
+    ``overall`` where a block has fewer than MIN_BLOCK_EDGES items."""
+    keys, inverse, counts = np.unique(block, return_inverse=True, return_counts=True)
+    inverse = inverse.ravel()
+    order = np.lexsort((np.abs(values), inverse))
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    ranked = np.abs(np.asarray(values, np.float64))[order]
+    lo = ranked[starts + (counts - 1) // 2]
+    hi = ranked[starts + counts // 2]
+    spread = np.where(counts >= MIN_BLOCK_EDGES, scale * 0.5 * (lo + hi), overall)
+    return spread[inverse]
 
 
 def above_road_surface(xyz, gradient, is_road, k: int, tolerance: float):
@@ -223,15 +247,31 @@ class RoadRegions(Stage):
         gradient = regions.coarse_gradient(xyz, o.slope_cell)
         raw = regions.edge_steps(xyz, xyz[:, 2].copy(), gradient, ea, eb)
         height_noise = o.height_noise or MAD_TO_SIGMA * float(np.median(np.abs(raw))) / np.sqrt(2.0)
+        width = o.filter_width * height_noise
+        edge_block = None
+        if o.noise_block and o.height_noise is None:
+            cell = np.floor((xyz[:, :2].astype(np.float64) + cloud.origin[:2]) / o.noise_block).astype(np.int64)
+            point_block = cell[:, 0] * (1 << 32) + (cell[:, 1] & 0xFFFFFFFF)
+            edge_block = point_block[ea]
+            edge_noise = block_spread(raw, edge_block, height_noise, MAD_TO_SIGMA / np.sqrt(2.0))
+            point_noise = np.full(n, height_noise, np.float64)
+            point_noise[eb] = edge_noise        # a point takes its block's value (edges from its block)
+            point_noise[ea] = edge_noise
+            width = (o.filter_width * point_noise).astype(np.float32)
+            del point_block, edge_noise, point_noise
         del raw
-        filtered = regions.mode_heights(xyz, neighbours, gradient, o.filter_width * height_noise)
+        filtered = regions.mode_heights(xyz, neighbours, gradient, width)
         steps = regions.edge_steps(xyz, filtered, gradient, ea, eb)
-        del filtered
+        del filtered, width
         step_sigma = MAD_TO_SIGMA * float(np.median(np.abs(steps)))
+        edge_sigma = step_sigma if edge_block is None else \
+            block_spread(steps, edge_block, step_sigma, MAD_TO_SIGMA).astype(np.float32)
+        del edge_block
         # the kerb probabilities per edge, evaluated where the merge needs them (elementwise, so
         # the same values): two full float64 arrays held through its rounds were 400 MB at 16 M
         def evidence(index):
-            return kerb_evidence(steps[index], step_sigma, o.kerb_min, o.kerb_max, o.kerb_prior)
+            sigma = edge_sigma if np.ndim(edge_sigma) == 0 else edge_sigma[index]
+            return kerb_evidence(steps[index], sigma, o.kerb_min, o.kerb_max, o.kerb_prior)
         colour_f = regions.neighbourhood_median(colour, neighbours)
         del colour
         if n > REQUERY_ROWS_ABOVE:
