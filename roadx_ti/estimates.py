@@ -111,6 +111,15 @@ class CellCounts:
         iy = (keys & 0xFFFFFFFF).astype(np.uint32).view(np.int32).astype(np.int64)
         return cls(float(cell), keys >> 32, iy, np.asarray(counts, np.int64))
 
+    def coarsened(self, factor: int) -> "CellCounts":
+        """The same points counted on cells ``factor`` times larger (cells aligned to the world grid)."""
+        if factor <= 1:
+            return self
+        ix, iy = self.ix // factor, self.iy // factor
+        keys, inverse = np.unique(ix * (1 << 32) + (iy & 0xFFFFFFFF), return_inverse=True)
+        counts = np.bincount(inverse.ravel(), weights=self.counts, minlength=len(keys)).astype(np.int64)
+        return CellCounts.from_keys(keys, counts, self.cell * factor)
+
 
 def _merge_counts(parts: list) -> tuple[np.ndarray, np.ndarray]:
     """(keys, counts) summed over (keys, counts) pieces, each key once, ascending."""

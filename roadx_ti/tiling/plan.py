@@ -88,14 +88,8 @@ def align_tiles(cells, tile_size: float, buffer: float, window_cap: int) -> tupl
     estimates.CellCounts. Ties go to the larger size, then the smaller offsets (deterministic)."""
     if not len(cells.counts) or not math.isfinite(tile_size):
         return tile_size, (0.0, 0.0)
-    factor = max(1, int(round(PLAN_CELL / cells.cell)))
-    # the counts on the planner's raster (cells of PLAN_CELL m)
-    key = (cells.ix // factor) * (1 << 32) + ((cells.iy // factor) & 0xFFFFFFFF)
-    unique, inverse = np.unique(key, return_inverse=True)
-    counts = np.bincount(inverse.ravel(), weights=cells.counts, minlength=len(unique)).astype(np.int64)
-    ix = unique >> 32
-    iy = (unique & 0xFFFFFFFF).astype(np.uint32).view(np.int32).astype(np.int64)
-    cell = cells.cell * factor
+    plan = cells.coarsened(max(1, int(round(PLAN_CELL / cells.cell))))     # the planner's raster
+    ix, iy, counts, cell = plan.ix, plan.iy, plan.counts, plan.cell
     lo = max(TILE_SIZE_STEP, TILE_SIZE_STEP * math.floor(SIZE_RANGE[0] * tile_size / TILE_SIZE_STEP))
     hi = TILE_SIZE_STEP * math.floor(SIZE_RANGE[1] * tile_size / TILE_SIZE_STEP)
     best = None
