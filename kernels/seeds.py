@@ -187,14 +187,14 @@ def roof_growth_edges(knn_indices, normal, *, angle_max_deg: float, active=None,
 def _expandable(curvature: ti.types.ndarray(dtype=ti.f32, ndim=1),
                 seed: ti.types.ndarray(dtype=ti.u8, ndim=1),
                 active: ti.types.ndarray(dtype=ti.u8, ndim=1),
-                use_curvature: ti.i32, curvature_max: ti.f32,
+                use_curvature: ti.i32, curvature_max: ti.types.ndarray(dtype=ti.f32, ndim=1),
                 out: ti.types.ndarray(dtype=ti.u8, ndim=1)):
     for i in out:
         ok = 0
         if active[i] != 0:
             if seed[i] != 0 or use_curvature == 0:
                 ok = 1
-            elif curvature[i] < curvature_max:
+            elif curvature[i] < curvature_max[i]:
                 ok = 1
         out[i] = ti.u8(ok)
 
@@ -259,8 +259,9 @@ def grow_roof_segments(knn_indices, edge_ok, seed, *, curvature=None, expand_cur
     """Roof segment label per point (int32 (n,)): the smallest point index of its roof core, -1
     for non-roof (semantics in the module docstring). Compact the ids with labels.relabel_compact.
 
-    edge_ok from roof_growth_edges; seed (n,) uint8; curvature (n,) with expand_curvature_max:
-    points at or above it (and not seeds) cannot pass growth on (None: every point can).
+    edge_ok from roof_growth_edges; seed (n,) uint8; curvature (n,) with expand_curvature_max
+    (a scalar, or one value per point): points at or above it (and not seeds) cannot pass growth
+    on (None: every point can).
     """
     from .labels import connected_components
 
@@ -275,7 +276,10 @@ def grow_roof_segments(knn_indices, edge_ok, seed, *, curvature=None, expand_cur
     edges = kernel_array(edge_ok, "uint8")
     label = output_array(ti.i32, (n,), knn_indices)
     expandable = ndarray(ti.u8, (n,))
-    _expandable(curv, seed_nd, act, int(use_curv), float(expand_curvature_max or 0.0), expandable)
+    limit = expand_curvature_max if use_curv else 0.0
+    scalar = isinstance(limit, (int, float, np.number))
+    limit = kernel_array(np.full(max(n, 1), limit, np.float32) if scalar else limit, "float32")
+    _expandable(curv, seed_nd, act, int(use_curv), limit, expandable)
     component = kernel_array(connected_components(knn, edge_ok=edges, active=expandable), "int32")
     seeded = zeros(ti.u8, (n,))
     _mark_seeded(component, seed_nd, seeded)

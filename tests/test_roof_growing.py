@@ -154,6 +154,17 @@ def test_random_graph_equals_reference(ti_arch):
     np.testing.assert_array_equal(got, want)
     compact, count = labels.relabel_compact(got)
     assert count == len(np.unique(want[want >= 0]))
+    # one limit per point (roof_growing's stricter limit for low points): a constant array is the
+    # scalar, a varying one the elementwise reference
+    same = seeds.grow_roof_segments(knn, edge_ok, seed.astype(np.uint8), curvature=curvature,
+                                    expand_curvature_max=np.full(n, 0.05, np.float32))
+    np.testing.assert_array_equal(same, got)
+    limit = np.where(rng.random(n) < 0.5, 0.02, 0.05).astype(np.float32)
+    varying = seeds.grow_roof_segments(knn, edge_ok, seed.astype(np.uint8), curvature=curvature,
+                                       expand_curvature_max=limit)
+    np.testing.assert_array_equal(varying, reference_growing(knn, edge_ok.astype(bool), seed, curvature,
+                                                             limit, active))
+    assert not np.array_equal(varying, got)
 
 
 def test_colour_rule_keeps_green_roof_and_stops_in_foliage(ti_arch):
@@ -370,23 +381,23 @@ def test_segment_widths_match_covariance():
         assert widths[sid] == pytest.approx(w, rel=0.05)
 
 
-def reference_annexes(segment, xy, kept, candidate, cell, reach):
-    """Brute force: a candidate segment with a point whose cell is within reach cells (Chebyshev)
-    of a cell holding a kept segment's point."""
-    cells = np.floor((xy - xy[segment >= 0].min(axis=0)) / cell).astype(np.int64)
-    reach_cells = math.ceil(round(reach / cell, 9))
-    kept_cells = cells[(segment >= 0) & kept[np.maximum(segment, 0)]]
+def reference_annexes(segment, xy, kept, candidate, reach, min_contact=0.0):
+    """Brute force: a candidate segment with at least one point, and at least ``min_contact`` of its
+    points, within ``reach`` (Euclidean, in plan) of a kept segment's point."""
+    kept_xy = xy[(segment >= 0) & kept[np.maximum(segment, 0)]]
+    share = np.broadcast_to(min_contact, len(kept))
     out = np.zeros(len(kept), bool)
     for sid in np.flatnonzero(candidate):
-        mine = cells[segment == sid]
-        if len(mine) and len(kept_cells):
-            gap = np.abs(mine[:, None, :] - kept_cells[None, :, :]).max(axis=2)
-            out[sid] = gap.min() <= reach_cells
+        mine = xy[segment == sid]
+        if len(mine) and len(kept_xy):
+            near = np.sqrt(((mine[:, None, :] - kept_xy[None, :, :]) ** 2).sum(axis=2)).min(axis=1) <= reach
+            out[sid] = near.any() and near.sum() >= share[sid] * len(mine)
     return out
 
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_annex_segments_equal_reference(seed):
+    """Exact plan distances whatever the preselecting grid's cell; the contact share per segment."""
     from roadx_ti.stages.roof_filter import annex_segments
 
     rng = np.random.default_rng(seed)
@@ -399,10 +410,15 @@ def test_annex_segments_equal_reference(seed):
     kept = rng.random(count) < 0.4
     kept[0] = True
     candidate = ~kept & (rng.random(count) < 0.8)
-    for cell, reach in [(1.0, 1.0), (0.5, 1.2), (1.0, 0.0)]:
-        got = annex_segments(segment, xy, kept, candidate, cell, reach)
-        np.testing.assert_array_equal(got, reference_annexes(segment, xy, kept, candidate, cell, reach))
-        assert not (got & ~candidate).any()
+    contact = rng.uniform(0, 0.5, count)
+    found = 0
+    for cell, reach in [(1.0, 1.0), (0.5, 1.2), (1.0, 0.0), (0.3, 3.0)]:
+        for share in (0.0, contact):
+            got = annex_segments(segment, xy, kept, candidate, cell, reach, share)
+            np.testing.assert_array_equal(got, reference_annexes(segment, xy, kept, candidate, reach, share))
+            assert not (got & ~candidate).any()
+            found += int(got.sum())
+    assert found > 0
 
 
 def annex_scene(seed=11):
@@ -456,6 +472,53 @@ def test_annex_against_a_roof_is_kept(ti_arch, annex_reach):
     assert building[part == 2].mean() < 0.05          # a detached small shed stays out (P4 area)
     assert building[part == 3].mean() < 0.05          # a foliage-coloured patch is no annex
     assert result.info["annexes_kept"] == (1 if annex_reach else 0)
+
+
+def hedge_scene(seed=3):
+    """No colour, no returns, 20 points/m2, ground z = 0: a 10 x 8 m flat roof at 6 m; against its
+    east wall a 2.5 x 3 m flat annex roof at 3 m; two trimmed hedges 1.4 m wide with their tops at
+    2.5 m, rough at the point spacing (5 cm): one running 14 m north from the house's north-east
+    corner, one along its south wall."""
+    rng = np.random.default_rng(seed)
+
+    def patch(x0, x1, y0, y1, z, noise):
+        m = int(20.0 * (x1 - x0) * (y1 - y0))
+        xyz = np.column_stack([rng.uniform(x0, x1, m), rng.uniform(y0, y1, m), np.full(m, z)])
+        return xyz + rng.normal(0, 1, (m, 3)) * [0.02, 0.02, noise]
+
+    parts = [patch(0, 10, 0, 8, 6.0, 0.02), patch(10.1, 12.6, 2, 5, 3.0, 0.02),
+             patch(10.3, 11.7, 8.3, 22, 2.5, 0.05), patch(0, 10, -1.6, -0.2, 2.5, 0.05)]
+    return np.concatenate(parts), np.repeat(np.arange(len(parts)), [len(p) for p in parts])
+
+
+@pytest.mark.parametrize("rules, corner_hedge, wall_hedge", [
+    ("all", False, False), ("none", True, True), ("contact", False, True), ("planar", False, False)])
+def test_hedges_against_a_house_are_judged_not_assumed(ti_arch, rules, corner_hedge, wall_hedge):
+    """Issue 16's point 4: the annex (flat, along the house) joins; a hedge from the house's corner
+    touches the roof at one end only (annex_min_contact), a hedge along the wall is rough
+    (low_min_planar); growth through low rough points (low_expand_curvature_max) off with them."""
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.roof_filter import RoofFilter
+    from roadx_ti.stages.roof_growing import RoofGrowing
+    from roadx_ti.stages.seeds import RoofSeeds
+
+    filter_options = {"attach_footprint": False, "edge_growth": False, "narrow_max_height": 4.5}
+    growing_options = {}
+    if rules != "all":
+        growing_options["low_expand_curvature_max"] = None
+        filter_options["low_min_planar"] = 0.15 if rules == "planar" else 0.0
+        filter_options["annex_min_contact"] = 0.2 if rules == "contact" else 0.0
+    xyz, part = hedge_scene()
+    cloud = Cloud.from_world(xyz, origin=np.zeros(3))
+    ctx = StageContext(point_data={"height_above_ground": cloud.xyz[:, 2].copy()})
+    for stage in (RoofSeeds(), RoofGrowing(growing_options), RoofFilter(filter_options)):
+        result = stage.run(cloud, ctx)
+        ctx.point_data.update(result.point_data)
+    building = result.labels == 6
+    assert building[part == 0].mean() > 0.95 and building[part == 1].mean() > 0.95
+    assert (building[part == 2].mean() > 0.9) == corner_hedge and (building[part == 2].mean() < 0.1) != corner_hedge
+    assert (building[part == 3].mean() > 0.9) == wall_hedge and (building[part == 3].mean() < 0.1) != wall_hedge
 
 
 @pytest.mark.parametrize("exempt", [0.02, None])

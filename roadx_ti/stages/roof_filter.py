@@ -27,12 +27,19 @@ Needs roof_growing before it (point_data 'roof_segment') and, for the height tes
   tree crown's flat patches to the branches below, and a roof stops them. The rim is left out
   (eaves split pulses onto walls and the ground beside them); see-through structures over roofs
   (pergolas, glass) about 2 m above a roof are kept (AHN3's).
+- low and rough (low_min_planar): a segment lower than narrow_max_height (median) with fewer than
+  low_min_planar of its points planar (curvature under a quarter of roof_seeds' curvature_max) is
+  neither a roof nor an annex: hedges and shrubs against houses reach the eaves and are smooth at a
+  metre, rough at the point spacing. Judged only for segments of at least JUDGED_NEIGHBOURHOODS x k
+  points (in fewer every neighbourhood straddles the rim).
 - annexes (annex_reach > 0): a segment dropped only by the area or width test (it passes the
   height test) is kept when it holds at least density * annex_min_area points, at most
-  annex_max_vegetation of them vegetation-coloured, and one of its points lies in a plan-view
-  cell (footprint_cell) within annex_reach of a cell holding a kept roof point: garages, porches
-  and annexes built against a house are building even when small or narrow. Decided from the
-  kept roofs only (no chains), so the result is order independent.
+  annex_max_vegetation of them vegetation-coloured, and it lies along a kept roof: a point within
+  annex_reach (+ ANNEX_GAP_SPACINGS pulse spacings, the sampling's gap) in plan of a kept roof's
+  point, and, judged as above, annex_min_contact of its points so: garages, porches and annexes
+  built against a house are building even when small or narrow; a hedge running away from a
+  house's corner touches it at one end only. Decided from the kept roofs only (no chains), so the
+  result is order independent.
 - edge completion (edge_growth, kernels/seeds.grow_roof_edges): roof points whose neighbourhood
   straddles the roof's edge (eaves, gable ends, courtyard rims: wall, gutter or foliage points in
   their k neighbours) fail the seed and normal tests and are left out of every segment, or form
@@ -76,6 +83,12 @@ from roadx_ti.stages.base import (CLASS_BUILDING, CLASS_OTHER, DATA_EDGE, Stage,
 FOOTPRINT_SPACINGS = 3.0
 FOOTPRINT_MIN_CELL = 0.5
 FALLBACK_FOOTPRINT_CELL = 1.0
+# the planarity and contact tests judge a segment of at least this many kNN neighbourhoods (k
+# points each) only: in fewer (a small roof of a sparse survey) every point's neighbours straddle
+# its rim, and a share of its points is too few points to say anything
+JUDGED_NEIGHBOURHOODS = 3
+# annex_reach is measured between sampled points: plus the gap of the sampling, in pulse spacings
+ANNEX_GAP_SPACINGS = 2.0
 
 
 def default_footprint_cell(ctx: StageContext) -> float:
@@ -97,6 +110,12 @@ class RoofFilterOptions(StageOptions):
     narrow_max_height: float = Field(3.5, ge=0, description="the width test applies to segments "
                                      "lower than this (m, median height): vehicles are lower; "
                                      "higher narrow segments are walls or roof parts")
+    low_min_planar: float = Field(0.15, ge=0, le=1, description="a segment lower than "
+                                  "narrow_max_height (m, median height) is a roof or an annex only when "
+                                  "at least this share of its points are planar (unitless; curvature "
+                                  "under a quarter of roof_seeds' curvature_max): hedges and shrubs "
+                                  "beside houses are as high as low roofs, their tops smooth at a metre "
+                                  "but rough at the point spacing; 0 = off")
     edge_cut: bool = Field(True, description="a segment cut by the edge of the data (tile or "
                            "survey boundary) is as wide as its cut is long: its width across the "
                            "cut is not observed")
@@ -106,6 +125,11 @@ class RoofFilterOptions(StageOptions):
                                "are building, often under 10 m2 or 3 m wide; 0 = off")
     annex_min_area: float = Field(1.0, ge=0, description="smallest annex segment (m2, same density "
                                   "as the area test): skips plane fragments of clutter by a wall")
+    annex_min_contact: float = Field(0.2, ge=0, le=1, description="an annex lies along its roof: "
+                                     "at least this share of its points within annex_reach of the "
+                                     "roof's points (unitless; a side-attached annex up to about "
+                                     "annex_reach / 0.2 = 5 m deep); a hedge from a house's corner "
+                                     "touches it at one end only")
     annex_max_vegetation: float = Field(0.3, ge=0, le=1, description="largest fraction of "
                                         "vegetation-coloured points of an annex (unitless): small "
                                         "planar patches in trees beside a roof are not annexes")
@@ -211,27 +235,52 @@ def cut_lengths(segment: np.ndarray, xy: np.ndarray, count: int, at_edge: np.nda
     return np.where(np.bincount(on[on >= 0], minlength=count) >= 3, length, 0.0)
 
 
-def annex_segments(segment: np.ndarray, xy: np.ndarray, kept: np.ndarray, candidate: np.ndarray,
-                   cell: float, reach: float) -> np.ndarray:
-    """Per segment id: a candidate segment with a point whose plan-view cell (side ``cell`` m) lies
-    within ``reach`` m (square window of cells) of a cell holding a kept segment's point. Reads
-    only the kept segments, so the result is order independent (no chains of annexes). bool."""
-    count = len(kept)
+def planar_shares(segment: np.ndarray, curvature: np.ndarray, count: int, planar_max: float) -> np.ndarray:
+    """Per segment id 0..count-1: the share of its points with curvature below ``planar_max``
+    (float64; 0 for an empty id)."""
     inside = segment >= 0
+    planar = np.bincount(segment[inside], minlength=count,
+                         weights=(np.asarray(curvature)[inside] < planar_max).astype(np.float64))
+    return planar / np.maximum(np.bincount(segment[inside], minlength=count), 1)
+
+
+def annex_segments(segment: np.ndarray, xy: np.ndarray, kept: np.ndarray, candidate: np.ndarray,
+                   cell: float, reach: float, min_contact=0.0) -> np.ndarray:
+    """Per segment id: a candidate segment with at least one point, and at least ``min_contact``
+    (a share, scalar or per segment) of its points, within ``reach`` m in plan of a kept segment's
+    point (exact distances; the grid of side ``cell`` m only preselects the points near each
+    other). Reads only the kept segments, so the result is order independent (no chains of
+    annexes). bool."""
+    from scipy.spatial import cKDTree
+
+    count = len(kept)
+    inside = np.flatnonzero(segment >= 0)
+    if not len(inside) or not candidate.any() or not kept.any():
+        return np.zeros(count, bool)
     seg = segment[inside]
     ij = np.floor((xy[inside] - xy[inside].min(axis=0)) / cell).astype(np.int64)
     reach_cells = int(np.ceil(round(reach / cell, 9)))
     ij += reach_cells
     n_rows = int(ij[:, 1].max()) + reach_cells + 1
     keys = ij[:, 0] * n_rows + ij[:, 1]
-    roof_keys = np.unique(keys[kept[seg]])
-    near = np.zeros(len(seg), bool)
+    is_roof, is_candidate = kept[seg], candidate[seg]
+    roof_keys, candidate_keys = np.unique(keys[is_roof]), np.unique(keys[is_candidate])
+    near_roof = np.zeros(len(seg), bool)
+    near_candidate = np.zeros(len(seg), bool)
     for dx in range(-reach_cells, reach_cells + 1):
         for dy in range(-reach_cells, reach_cells + 1):
             shifted = keys + dx * n_rows + dy
-            near |= np.isin(shifted, roof_keys)
-    touching = np.bincount(seg[near & candidate[seg]], minlength=count) > 0
-    return touching & candidate
+            near_roof |= np.isin(shifted, roof_keys)
+            near_candidate |= np.isin(shifted, candidate_keys)
+    probe = np.flatnonzero(near_roof & is_candidate)
+    roof = np.flatnonzero(near_candidate & is_roof)
+    if not len(probe) or not len(roof):
+        return np.zeros(count, bool)
+    distance, _ = cKDTree(xy[inside[roof]].astype(np.float64)).query(
+        xy[inside[probe]].astype(np.float64), distance_upper_bound=float(reach))
+    contact = np.bincount(seg[probe[np.isfinite(distance)]], minlength=count)
+    sizes = np.bincount(seg, minlength=count)
+    return (contact > 0) & (contact >= min_contact * sizes) & candidate
 
 
 def seen_through(segment: np.ndarray, xyz: np.ndarray, count: int, cell: float, depth: float,
@@ -400,25 +449,32 @@ class RoofFilter(Stage):
                 width = np.where(widened, cut, width)
             narrow = width < o.min_roof_width
             keep_width = ~(narrow & (median_height < o.narrow_max_height))
+        judged = sizes >= JUDGED_NEIGHBOURHOODS * (int(np.shape(knn)[1]) if knn is not None else 0)
+        smooth = np.ones(count, bool)
+        if count and o.low_min_planar > 0 and height is not None and "curvature" in ctx.point_data:
+            smooth = ~(judged & (median_height < o.narrow_max_height) &
+                       (planar_shares(segment, ctx.point_data["curvature"], count,
+                                      float(ctx.facts.get("roof_curvature_max") or 0.02) / 4) < o.low_min_planar))
         opaque = np.ones(count, bool)
         later = cloud.later_returns() if o.see_through_depth > 0 and count else None
         if later is not None:
             # points per segment, not cells: both counts scale with the density alike
             interior, seen = seen_through(segment, cloud.xyz, count, cell, o.see_through_depth, later)
             opaque = ~((seen >= o.see_through_min_points) & (seen >= o.max_see_through * interior))
-        kept = keep_area & keep_height & keep_width & opaque
+        kept = keep_area & keep_height & keep_width & opaque & smooth
         annexes = 0
         if o.annex_reach > 0 and count and kept.any():
             # dropped by the area or width test only, large enough, not mostly foliage-coloured
-            candidate = keep_height & opaque & ~kept & (sizes >= area_density * o.annex_min_area)
+            candidate = keep_height & opaque & smooth & ~kept & (sizes >= area_density * o.annex_min_area)
             vegetation = ctx.point_data.get("vegetation")
             if vegetation is not None:
                 inside = segment >= 0
                 coloured = np.bincount(segment[inside], minlength=count,
                                        weights=(np.asarray(vegetation)[inside] != 0).astype(np.float64))
                 candidate &= coloured <= o.annex_max_vegetation * sizes
-            annex = annex_segments(segment, cloud.xyz[:, :2], kept, candidate,
-                                   cell, o.annex_reach)
+            gap = ANNEX_GAP_SPACINGS * float(survey_spacing(ctx) or 0.0)
+            annex = annex_segments(segment, cloud.xyz[:, :2], kept, candidate, cell, o.annex_reach + gap,
+                                   np.where(judged, o.annex_min_contact, 0.0))
             annexes = int(annex.sum())
             kept = kept | annex
         roof = np.zeros(len(segment), bool)

@@ -6,7 +6,9 @@ Semantics (order independent; see kernels/seeds.py): a growth edge joins kNN nei
 normals are within angle_max_deg, and, when either is vegetation-coloured (COM > com_threshold),
 whose 8-bit RGB distance is below color_max (a point with curvature below color_exempt_curvature
 counts as not vegetation-coloured for this rule: planar roof under overhanging foliage); growth
-passes only through seeds and points with curvature below expand_curvature_max; connected pieces holding a seed are roof segments, other
+passes only through seeds and points with curvature below expand_curvature_max (below
+low_expand_curvature_max for points lower than low_height above the ground: hedges and shrubs
+against a house reach its eaves, and a roof grown through them took them in); connected pieces holding a seed are roof segments, other
 points touching them by a growth edge join as leaves. Without colour the colour rule is off (a
 warning says so). LiDAR returns (when the input has them): an earlier return of a multi-return
 pulse whose curvature is not below returns_exempt_curvature (foliage: the laser went on through
@@ -50,6 +52,14 @@ class RoofGrowingOptions(StageOptions):
     expand_curvature_max: float | None = Field(
         0.05, gt=0, description="points with curvature at or above this (unitless) join a roof but "
         "do not pass growth on; null = every point passes it on")
+    low_expand_curvature_max: float | None = Field(
+        0.02, gt=0, description="points lower than low_height above the ground pass growth on only "
+        "below this curvature (unitless): hedges and shrubs against a house reach its eaves and are "
+        "smooth at a metre, rough at the point spacing, so a roof grown through them takes them in; "
+        "null = expand_curvature_max everywhere")
+    low_height: float = Field(4.5, ge=0, description="height above ground (m) under which "
+                              "low_expand_curvature_max applies: the band of hedges, shrubs and "
+                              "vehicles (roof_filter's narrow_max_height)")
     use_color: bool = Field(True, description="apply the vegetation colour rule when the cloud has RGB")
     com_threshold: float = Field(DEFAULT_COM_THRESHOLD, description="points with COM vegetation index above this are "
                                  "vegetation-coloured (COM is unitless; grey = 6.2815)")
@@ -150,7 +160,7 @@ class RoofGrowing(Stage):
                                     active=active, **edge_colour)
         segment = grow_roof_segments(knn, edge_ok, ctx.point_data["roof_seed"],
                                      curvature=ctx.point_data["curvature"],
-                                     expand_curvature_max=o.expand_curvature_max,
+                                     expand_curvature_max=self._expand_limit(ctx),
                                      active=None if isolated is None else (~isolated).astype(np.uint8))
         segment, count = relabel_compact(np.asarray(segment))
         if penetrated is not None:
@@ -184,6 +194,16 @@ class RoofGrowing(Stage):
                                         (foliage_returns.astype(np.uint8) * VEGETATION_BY_RETURNS)).astype(np.uint8)
             info["foliage_returns"] = int(np.count_nonzero(foliage_returns))
         return StageResult(point_data=point_data, segment_id=segment, info=info)
+
+    def _expand_limit(self, ctx: StageContext):
+        """expand_curvature_max, or per point the stricter low_expand_curvature_max under low_height
+        (float32 array) when that is set and cloth_ground left heights above ground."""
+        o = self.options
+        height = ctx.point_data.get("height_above_ground")
+        if o.expand_curvature_max is None or o.low_expand_curvature_max is None or height is None:
+            return o.expand_curvature_max
+        low = min(o.low_expand_curvature_max, o.expand_curvature_max)
+        return np.where(np.asarray(height) < o.low_height, low, o.expand_curvature_max).astype(np.float32)
 
     def _covered(self, cloud: Cloud, ctx: StageContext) -> np.ndarray:
         """bool per point: overtopped in its plan cell by more than the clearance (kernels
