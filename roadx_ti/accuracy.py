@@ -694,6 +694,15 @@ NOTES = {
         "1.8 m (finds a 2 m outbuilding on 77060_627755 but takes terraces: merged 0.919 / 0.921); walls "
         "joining within 3-4 pulse spacings of a kept roof's points instead of one footprint cell: IGN "
         "+0.006, AHN3 -0.004 to -0.008 (its truth labels walls).",
+        "ign_870000 with its unlabelled building as roof, a report row (2026-12-06): the row amends the "
+        "truth with the building's class-1 points (`accuracy.with_unlabelled_building`: the box of its "
+        "roof and walls, x 870214.0-870230.6, y 6617089.4-6617106.0, nothing but class 1 in it, more than "
+        "2 m above the box's lowest point: 2,698 points); the pipeline reads no input class. Kappa 0.9499 "
+        "at 233cab5, 0.9506 at f698568 (issue 16's bound 0.95). The 0.9447 quoted above scored another "
+        "point set of the same building, not recorded; this row's definition is the one to follow. Left: "
+        "377 missed points (the 1.3-1.5 m structures under the 2 m height test, rims) and 448 false ones "
+        "(the 2.4 m structure at the west edge that the truth leaves in class 1, crown patches on the "
+        "north-west house).",
     ],
 }
 
@@ -754,6 +763,9 @@ def datasets(task: str, sizes=ROOF_SIZES, seeds=ROOF_SEEDS):
     else:
         rows.append(("IGN ign_870000_6618000",
                      lambda: io.read(SHARED_DATA / "roof" / "ign_870000_6618000.las"), [6], "roof_als.yaml"))
+        rows.append(("IGN ign_870000_6618000, its unlabelled building as roof",
+                     lambda: with_unlabelled_building(io.read(SHARED_DATA / "roof" / "ign_870000_6618000.las")),
+                     [6], "roof_als.yaml"))
         rows.append(("IGN ign_874000_6617000_reviewed",
                      lambda: io.read(SHARED_DATA / "roof" / "ign_874000_6617000_reviewed.laz"), [19], "roof_als.yaml"))
         # the six adjacent IGN tiles: real roofs without colour (returns are the vegetation cue),
@@ -790,6 +802,28 @@ def datasets(task: str, sizes=ROOF_SIZES, seeds=ROOF_SEEDS):
 
 
 THIN_DENSITY = 3.0      # points per m2 of the thinned real tiles
+
+# ign_870000_6618000's gabled building that its truth leaves in class 1 (the notes; the RGB shows its
+# grey roof): world x / y box of its roof and walls, read off the cloud (x 870214.0-870230.6,
+# y 6617089.4-6617106.0; nothing but class 1 lies in it). Issue 16's acceptance scores the file with
+# that building as roof.
+IGN_870000_BUILDING_BOX = (870214.0, 870230.6, 6617089.4, 6617106.0)
+IGN_870000_BUILDING_MIN_HEIGHT = 2.0     # m above the box's lowest point: roof and walls, not the ground
+
+
+def with_unlabelled_building(cloud):
+    """ign_870000_6618000 with its unlabelled building's points (class 1 in the box, more than 2 m
+    above the box's lowest point: 2,698 points) in class 6, the truth amended; the pipeline does
+    not read input classes."""
+    from dataclasses import replace
+
+    xyz = cloud.world_xyz()
+    x0, x1, y0, y1 = IGN_870000_BUILDING_BOX
+    box = (xyz[:, 0] > x0) & (xyz[:, 0] < x1) & (xyz[:, 1] > y0) & (xyz[:, 1] < y1)
+    if not box.any():
+        return cloud
+    building = box & (cloud.classification == 1) & (xyz[:, 2] > xyz[box, 2].min() + IGN_870000_BUILDING_MIN_HEIGHT)
+    return replace(cloud, classification=np.where(building, np.uint8(6), cloud.classification).astype(np.uint8))
 
 
 def thin_to_density(cloud, per_m2: float):
