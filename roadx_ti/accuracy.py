@@ -703,6 +703,29 @@ NOTES = {
         "377 missed points (the 1.3-1.5 m structures under the 2 m height test, rims) and 448 false ones "
         "(the 2.4 m structure at the west edge that the truth leaves in class 1, crown patches on the "
         "north-west house).",
+        "Crowns hanging over low roofs (2026-12-06, `roof_filter.over_roof_reach` 3 m): footprint "
+        "completion lets a point that no vegetation cue flags join anywhere inside a roof's footprint, "
+        "whatever its height; on tile 77060_627760, 332 false points did so 5-9 m (median 6.8 m) above a "
+        "3 m roof, 4.5-9.8 m (10-90 %, 3D) from the nearest roof point: a tall crown over a low building. "
+        "True points more than a storey over their cell's roof (merged block 254, AHN3 117: upper levels' "
+        "walls and structures on roofs) lie 0.4-3.0 m from a roof point. Such points now join only within "
+        "a storey (3 m, 3D) of a roof point (`roof_filter.over_roofs`; the cell is footprint "
+        "completion's, the height superstructure_height). Kappa before -> after: six tiles 0.9257 / "
+        "0.9184 / 0.9695 / 0.9380 / 0.9290 / 0.9019 -> 0.9253 / 0.9189 / 0.9695 / 0.9380 / 0.9286 / "
+        "0.9146, merged 0.9376 -> 0.9395, thinned block 0.9039 unchanged, AHN3 0.9500 -> 0.9496 (thinned "
+        "0.8706 -> 0.8699), ign_870000 and the reviewed tile unchanged; at 10 / 5 / 2 points/m2 merged "
+        "0.9198 / 0.9089 / 0.8943 -> 0.9199 / 0.9096 / 0.8949, AHN3 0.9161 / 0.9038 / 0.8574 -> 0.9160 / "
+        "0.9036 / 0.8574; synthetic medians 300 k / 1 M / 4 M 0.9677 / 0.9645 / 0.9648 -> 0.9687 / 0.9651 "
+        "/ 0.9655 (worst 0.9445 -> 0.9453). Held out: synthetic 300 k seeds 4 / 7 / 12 without colour "
+        "0.9662 / 0.9339 / 0.9485 -> 0.9705 / 0.9403 / 0.9523, seeds 10-14 with colour 0.9622 / 0.9609 / "
+        "0.9626 / 0.9652 / 0.9537 -> 0.9625 / 0.9611 / 0.9636 / 0.9658 / 0.9544. Reach 2 / 3 / 4 m: "
+        "merged 0.9392 / 0.9395 / 0.9394, 77060_627760 0.9146 / 0.9146 / 0.9140, AHN3 0.9492 / 0.9496 / "
+        "0.9500. Measured, not adopted: the height over the roof point nearest in plan instead of the "
+        "cell's (also tests points outside roof cells): AHN3 0.9490, thinned 0.8661 (walls of a taller "
+        "neighbour); a wall rule only for non-horizontal normals (|n_z| < 0.8 or 0.9: bush tops under "
+        "eaves are horizontal): IGN +0.001 to +0.009 per tile but AHN3 0.9396-0.9426 (its gutters and "
+        "eaves below roof edges); a cap of 2-4 m on any point above its roof: AHN3 and 77050_627755 lose "
+        "76-269 true points.",
     ],
 }
 

@@ -421,6 +421,31 @@ def test_annex_segments_equal_reference(seed):
     assert found > 0
 
 
+def test_over_roofs_drops_crowns_hanging_over_a_roof_not_its_upper_level():
+    """roof_filter.over_roofs: attached points more than a storey above their cell's roof points
+    count only within a storey (3D) of a roof point: an upper roof level's walls and a point on it
+    stay, a crown 6-8 m over the low roof goes; walls below and points outside the roof cells are
+    never tested."""
+    from roadx_ti.stages.roof_filter import over_roofs
+
+    rng = np.random.default_rng(4)
+    low = np.column_stack([rng.uniform(0, 10, 1600), rng.uniform(0, 8, 1600), np.full(1600, 3.0)])
+    upper = np.column_stack([rng.uniform(0, 4, 640), rng.uniform(0, 8, 640), np.full(640, 7.0)])
+    upper_wall = np.column_stack([np.full(80, 4.05), rng.uniform(0, 8, 80), rng.uniform(3.2, 6.9, 80)])
+    crown = np.column_stack([rng.uniform(7, 9.5, 200), rng.uniform(2, 6, 200), rng.uniform(9, 11, 200)])
+    wall_below = np.column_stack([np.full(60, 10.1), rng.uniform(0, 8, 60), rng.uniform(0.5, 2.8, 60)])
+    outside_high = np.column_stack([rng.uniform(13, 15, 40), rng.uniform(0, 8, 40), np.full(40, 12.0)])
+    parts = [low, upper, upper_wall, crown, wall_below, outside_high]
+    xyz = np.concatenate(parts).astype(np.float32)
+    part = np.repeat(np.arange(len(parts)), [len(p) for p in parts])
+    core = np.where(part == 0, 0, np.where(part == 1, 1, -1)).astype(np.int32)
+    grown = np.where(part >= 2, 0, core).astype(np.int32)
+    hanging = over_roofs(xyz, core, grown, cell=0.5, height=3.0, reach=3.0)
+    assert hanging[part == 3].all()
+    assert not hanging[(part != 3)].any()
+    assert not over_roofs(xyz, core, grown, cell=0.5, height=3.0, reach=12.0)[part == 3].any()
+
+
 def annex_scene(seed=11):
     """A 10 x 8 m flat roof at 6 m; against its east wall a 2.5 x 3 m annex roof at 3 m (7.5 m2,
     below the 10 m2 area); a detached shed of the same size 8 m away; a flat foliage-coloured

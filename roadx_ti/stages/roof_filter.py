@@ -59,7 +59,10 @@ Needs roof_growing before it (point_data 'roof_segment') and, for the height tes
   kept roof's edge, chimneys and roof units standing on it and roof points under overhanging
   foliage join it; off the roof surface only points that are not vegetation-coloured join
   (point_data 'vegetation' from roof_growing: colour or foliage returns; without either every
-  point may).
+  point may). A point more than superstructure_height above the roof points of its footprint cell
+  joins only within over_roof_reach (3D) of a roof point: higher than a storey over a roof stands
+  another roof level or something on one; a crown hanging over a low roof is far from every roof
+  point (over_roofs).
 Labels: 6 (building) for points of kept segments, 1 (other) for the rest; segment_id compact over
 the kept segments, -1 elsewhere.
 """
@@ -71,6 +74,7 @@ import numpy as np
 from typing import Literal
 
 from pydantic import Field
+from scipy.spatial import cKDTree
 
 from roadx_ti.cloud import Cloud
 from roadx_ti.segments import segment_medians
@@ -189,6 +193,11 @@ class RoofFilterOptions(StageOptions):
                                                 "what lies further out is a hedge or a bush by the wall)")
     surface_tol: float = Field(0.5, ge=0, description="a point within this height (m) of its roof "
                                "cell's z range lies on the roof surface and joins whatever its colour")
+    over_roof_reach: float = Field(3.0, ge=0, description="footprint completion: a point more than "
+                                   "superstructure_height above the roof points of its footprint cell "
+                                   "joins only within this distance (m, 3D) of a roof point: what stands "
+                                   "higher than a storey on a roof is another roof level or on one, a "
+                                   "crown hanging over a low roof is far from every roof point; 0 = off")
     superstructure_height: float = Field(3.0, ge=0, description="a point inside a footprint within this "
                                          "height (m) of its roof cell's z range joins when only the returns "
                                          "cue calls it foliage (chimneys, vents, railings, roof units, stair "
@@ -235,6 +244,33 @@ def cut_lengths(segment: np.ndarray, xy: np.ndarray, count: int, at_edge: np.nda
     return np.where(np.bincount(on[on >= 0], minlength=count) >= 3, length, 0.0)
 
 
+def over_roofs(xyz: np.ndarray, core: np.ndarray, grown: np.ndarray, cell: float, height: float,
+               reach: float) -> np.ndarray:
+    """bool per point: footprint completion attached it (``grown`` >= 0, ``core`` < 0), it lies in
+    a plan cell (side ``cell`` m) holding roof points of ``core``, more than ``height`` m above the
+    highest of them, and no roof point lies within ``reach`` m of it in 3D (scipy cKDTree,
+    float64)."""
+    out = np.zeros(len(core), bool)
+    roof = np.flatnonzero(core >= 0)
+    new = np.flatnonzero((grown >= 0) & (core < 0))
+    if not len(roof) or not len(new):
+        return out
+    pts = np.asarray(xyz, np.float64)
+    ij = np.floor((pts[:, :2] - pts[:, :2].min(axis=0)) / cell).astype(np.int64)
+    keys = ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1]
+    order = np.argsort(keys[roof], kind="stable")
+    roof_keys = keys[roof][order]
+    cells, first = np.unique(roof_keys, return_index=True)
+    top = np.maximum.reduceat(pts[roof, 2][order], first)
+    at = np.minimum(np.searchsorted(cells, keys[new]), len(cells) - 1)
+    in_roof_cell = cells[at] == keys[new]
+    high = new[in_roof_cell & (pts[new, 2] > top[at] + height)]
+    if len(high):
+        distance, _ = cKDTree(pts[roof]).query(pts[high], distance_upper_bound=reach)
+        out[high[~np.isfinite(distance)]] = True
+    return out
+
+
 def planar_shares(segment: np.ndarray, curvature: np.ndarray, count: int, planar_max: float) -> np.ndarray:
     """Per segment id 0..count-1: the share of its points with curvature below ``planar_max``
     (float64; 0 for an empty id)."""
@@ -251,8 +287,6 @@ def annex_segments(segment: np.ndarray, xy: np.ndarray, kept: np.ndarray, candid
     point (exact distances; the grid of side ``cell`` m only preselects the points near each
     other). Reads only the kept segments, so the result is order independent (no chains of
     annexes). bool."""
-    from scipy.spatial import cKDTree
-
     count = len(kept)
     inside = np.flatnonzero(segment >= 0)
     if not len(inside) or not candidate.any() or not kept.any():
@@ -507,6 +541,9 @@ class RoofFilter(Stage):
                 cloud.xyz, core, off_surface_ok, eligible,
                 cell=cell, inside_reach=o.inside_reach, wall_reach=wall_reach,
                 surface_tol=o.surface_tol, near_tol=o.superstructure_height))
+            if o.over_roof_reach > 0:
+                hovering = over_roofs(cloud.xyz, core, grown, cell, o.superstructure_height, o.over_roof_reach)
+                grown = np.where(hovering, -1, grown)
             grown = np.where(roof, segment, grown)
             attached = int(np.count_nonzero(grown >= 0) - np.count_nonzero(roof))
             segment, roof = grown, grown >= 0
