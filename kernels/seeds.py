@@ -46,8 +46,8 @@ non-roof point q joins a roof when
   NEAR_SURFACE_ONLY, when it lies within near_tol of that z range (a chimney, vent or railing whose
   pulses split, which the returns cue alone takes for foliage);
 - else q is *under a roof edge*: a roof cell within wall_reach (square window) has its lowest roof
-  point above z(q) + surface_tol, and off_surface_ok(q) is 1; it takes the segment of the nearest such
-  cell (ties: lower cell id).
+  point above z(q) + surface_tol, and off_surface_ok(q) is 1 (INSIDE_ONLY: inside a footprint only,
+  as 1 there); it takes the segment of the nearest such cell (ties: lower cell id).
 Every decision reads only the grid built from the roof points before any point joins, so the
 result does not depend on order (one pass, no chains).
 A point's decision reads roof cells within max(inside_reach, wall_reach) only: when the grid over
@@ -68,6 +68,7 @@ from .common import (INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, i
 FOOTPRINT_CELLS_PER_POINT = 4
 FOOTPRINT_MIN_CELLS = 1 << 20
 NEAR_SURFACE_ONLY = 2            # off_surface_ok: may join inside a footprint near its surface only
+INSIDE_ONLY = 3                  # off_surface_ok: as 1 inside a footprint, not under a roof edge outside it
 FOOTPRINT_BLOCK = 256            # cells per block edge of the blocked footprint grid
 
 
@@ -510,7 +511,8 @@ def _attach_footprint(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2),
                     # below the roof in a roof cell: a wall or eave return under the roof edge
                     under_own = best_d == 0 and z < lo - surface_tol
                     ok = off_surface_ok[i]
-                    if on_surface or under_own or ok == 1 or (ok == NEAR_SURFACE_ONLY and near_surface):
+                    if on_surface or under_own or ok == 1 or ok == INSIDE_ONLY or \
+                            (ok == NEAR_SURFACE_ONLY and near_surface):
                         label = segment[first[best_k]]
                 elif off_surface_ok[i] == 1:
                     # under a roof edge: a roof cell nearby whose lowest roof point is above z
@@ -540,7 +542,8 @@ def attach_to_footprints(xyz, segment, off_surface_ok=None, eligible=None, *, ce
 
     xyz (n, 3) in m; segment (n,) int32 roof segment ids, -1 = none; off_surface_ok (n,) uint8
     (default all 1): 1 = may join off a roof surface (inside a footprint above or below it, or
-    under a roof edge), NEAR_SURFACE_ONLY (2) = may join inside a footprint within ``near_tol`` of
+    under a roof edge), INSIDE_ONLY (3) = as 1 inside a footprint but not under a roof edge outside
+    it, NEAR_SURFACE_ONLY (2) = may join inside a footprint within ``near_tol`` of
     its roof cell's z range only (roof superstructures whose pulses split), 0 = on the surface
     only; eligible (n,) uint8 (default all 1): points that may join at all
     (the stage passes "high enough above ground"). cell, inside_reach, wall_reach, surface_tol in m.

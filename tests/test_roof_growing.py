@@ -253,7 +253,8 @@ def test_roof_stages_on_synthetic_plot(ti_arch, with_colour, caplog):
 
 def reference_attach(xyz, segment, off_ok, eligible, cell, inside_reach, wall_reach, tol, near_tol=0.0):
     """Footprint completion of kernels/seeds.attach_to_footprints, written out per point
-    (off_ok 1: anywhere, 2: inside a footprint within near_tol of the roof cell's z range)."""
+    (off_ok 1: anywhere, 2: inside a footprint within near_tol of the roof cell's z range, 3: as 1
+    inside a footprint, never under a roof edge outside it)."""
     near_tol = max(near_tol, tol)
     roof = segment >= 0
     margin = max(inside_reach, wall_reach) + cell
@@ -285,7 +286,7 @@ def reference_attach(xyz, segment, off_ok, eligible, cell, inside_reach, wall_re
         if len(hits) == 4:
             s, _, key = min(hits)
             first, lo, hi = cells[key]
-            if (lo - tol <= z <= hi + tol) or (s == 0 and z < lo - tol) or off_ok[i] == 1 or \
+            if (lo - tol <= z <= hi + tol) or (s == 0 and z < lo - tol) or off_ok[i] in (1, 3) or \
                     (off_ok[i] == 2 and lo - near_tol <= z <= hi + near_tol):
                 out[i] = segment[first]
         elif off_ok[i] == 1:
@@ -338,6 +339,16 @@ def test_attach_to_footprints_equals_reference(ti_arch, seed):
                                                              1.0, 3.0, 1.0, 0.5, 1.5))
     two = (near_ok == 2) & (segment < 0)
     assert (got_near[two] >= 0).any() and (got_near[two] < 0).any()
+    # inside only (roof_filter's level low points): as 1 inside a footprint, not under an edge outside
+    inside_ok = np.where(off_ok == 1, np.where(np.random.default_rng(seed + 11).random(len(xyz)) < 0.5, 3, 1), 0)
+    inside_ok = inside_ok.astype(np.uint8)
+    got_inside = seeds.attach_to_footprints(xyz, segment, inside_ok, eligible, cell=1.0, inside_reach=3.0,
+                                            wall_reach=1.0, surface_tol=0.5)
+    np.testing.assert_array_equal(got_inside, reference_attach(xyz, segment, inside_ok, eligible.astype(bool),
+                                                               1.0, 3.0, 1.0, 0.5))
+    three = (inside_ok == 3) & (segment < 0)
+    lost = three & (got >= 0) & (got_inside < 0)            # under an edge outside: joined as 1 only
+    assert lost.any() and (three & (got_inside >= 0)).any()
     assert (got[segment >= 0] == segment[segment >= 0]).all()
     assert (got >= 0).sum() > (segment >= 0).sum()       # something joined
     # points in the roof-unit hole and above roof a (an HVAC unit) join roof a when allowed
@@ -444,6 +455,37 @@ def test_over_roofs_drops_crowns_hanging_over_a_roof_not_its_upper_level():
     assert hanging[part == 3].all()
     assert not hanging[(part != 3)].any()
     assert not over_roofs(xyz, core, grown, cell=0.5, height=3.0, reach=12.0)[part == 3].any()
+
+
+@pytest.mark.parametrize("wall_max_normal_z", [0.8, None])
+def test_level_low_points_under_the_eaves_are_no_wall(ti_arch, wall_max_normal_z):
+    """Footprint completion's wall rule: a wall under the roof's edge joins; the level top of a bush
+    1.8 m high under the eaves, outside the roof's cells, joins only with the normal test off."""
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.roof_filter import RoofFilter
+    from roadx_ti.stages.roof_growing import RoofGrowing
+    from roadx_ti.stages.seeds import RoofSeeds
+
+    rng = np.random.default_rng(8)
+    # a sparse wall, as ALS sees walls; the bush's cells (1 m from x = -3.98) are the next column
+    roof = np.column_stack([rng.uniform(0, 9.7, 1600), rng.uniform(0, 8, 1600), np.full(1600, 6.0)])
+    wall = np.column_stack([np.full(150, 9.7), rng.uniform(0, 8, 150), rng.uniform(1.2, 5.6, 150)])
+    bush = np.column_stack([rng.uniform(10.15, 10.9, 160), rng.uniform(1, 7, 160), np.full(160, 1.8)])
+    parts = [roof, wall, bush]
+    xyz = np.concatenate(parts) + rng.normal(0, 0.015, (1910, 3))
+    part = np.repeat(np.arange(3), [len(p) for p in parts])
+    cloud = Cloud.from_world(xyz, origin=np.zeros(3))
+    ctx = StageContext(point_data={"height_above_ground": cloud.xyz[:, 2].copy()})
+    options = {"edge_growth": False, "narrow_max_height": 4.5, "footprint_cell": 1.0,
+               "wall_max_normal_z": wall_max_normal_z}
+    for stage in (RoofSeeds(), RoofGrowing(), RoofFilter(options)):
+        result = stage.run(cloud, ctx)
+        ctx.point_data.update(result.point_data)
+    building = result.labels == 6
+    assert building[part == 0].mean() > 0.95 and building[part == 1].mean() > 0.8
+    bush_joined = building[part == 2].mean()
+    assert bush_joined < 0.05 if wall_max_normal_z else bush_joined > 0.8
 
 
 def annex_scene(seed=11):

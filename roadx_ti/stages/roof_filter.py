@@ -59,7 +59,9 @@ Needs roof_growing before it (point_data 'roof_segment') and, for the height tes
   kept roof's edge, chimneys and roof units standing on it and roof points under overhanging
   foliage join it; off the roof surface only points that are not vegetation-coloured join
   (point_data 'vegetation' from roof_growing: colour or foliage returns; without either every
-  point may). A point more than superstructure_height above the roof points of its footprint cell
+  point may); under a roof edge outside its cells, points lower than narrow_max_height join only
+  on steep surfaces (|normal z| < wall_max_normal_z): walls stand vertical, the low level points
+  there are the tops of bushes and hedges under the eaves. A point more than superstructure_height above the roof points of its footprint cell
   joins only within over_roof_reach (3D) of a roof point: higher than a storey over a roof stands
   another roof level or something on one; a crown hanging over a low roof is far from every roof
   point (over_roofs).
@@ -191,6 +193,12 @@ class RoofFilterOptions(StageOptions):
                                                 "footprint cell, the uncertainty of the cells' outline "
                                                 "(walls stand under the eaves, inside the roof's outline: "
                                                 "what lies further out is a hedge or a bush by the wall)")
+    wall_max_normal_z: float | None = Field(0.8, gt=0, le=1, description="under a roof edge outside "
+                                            "its footprint cells, points lower than narrow_max_height "
+                                            "join only on surfaces steeper than this (|normal z|, "
+                                            "unitless; 0.8 is about 37 degrees): walls stand vertical, "
+                                            "low level points there are the tops of bushes and hedges "
+                                            "under the eaves (balconies stand higher); null = every point")
     surface_tol: float = Field(0.5, ge=0, description="a point within this height (m) of its roof "
                                "cell's z range lies on the roof surface and joins whatever its colour")
     over_roof_reach: float = Field(3.0, ge=0, description="footprint completion: a point more than "
@@ -519,7 +527,7 @@ class RoofFilter(Stage):
             segment, roof, edges = self._grow_edges(cloud, ctx, segment, roof, height)
         attached = 0
         if o.attach_footprint and roof.any():
-            from roadx_ti.kernels.seeds import NEAR_SURFACE_ONLY, attach_to_footprints
+            from roadx_ti.kernels.seeds import INSIDE_ONLY, NEAR_SURFACE_ONLY, attach_to_footprints
             from roadx_ti.stages.roof_growing import VEGETATION_BY_RETURNS
 
             vegetation = ctx.point_data.get("vegetation")
@@ -533,6 +541,12 @@ class RoofFilter(Stage):
                 # inside a canopy (every neighbour foliage): on the surface only
                 near = (vegetation == VEGETATION_BY_RETURNS) & ~self._in_foliage(ctx, vegetation != 0)
                 off_surface_ok = np.where(vegetation == 0, 1, np.where(near, NEAR_SURFACE_ONLY, 0)).astype(np.uint8)
+            if o.wall_max_normal_z is not None and "normal" in ctx.point_data and height is not None:
+                # level and low: bush and hedge tops under the eaves (balconies stand higher)
+                level = (np.abs(np.asarray(ctx.point_data["normal"])[:, 2]) >= o.wall_max_normal_z) & \
+                    (np.asarray(height) < o.narrow_max_height)
+                ok = np.ones(cloud.n, np.uint8) if off_surface_ok is None else off_surface_ok
+                off_surface_ok = np.where(level & (ok == 1), INSIDE_ONLY, ok).astype(np.uint8)
             eligible = None if height is None else \
                 (np.asarray(height) >= o.attach_min_height).astype(np.uint8)
             # the footprints of the roofs as grown from their seeds: the rims edge growth added
