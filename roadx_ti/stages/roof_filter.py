@@ -274,7 +274,13 @@ def over_roofs(xyz: np.ndarray, core: np.ndarray, grown: np.ndarray, cell: float
     in_roof_cell = cells[at] == keys[new]
     high = new[in_roof_cell & (pts[new, 2] > top[at] + height)]
     if len(high):
-        distance, _ = cKDTree(pts[roof]).query(pts[high], distance_upper_bound=reach)
+        # the roof points within reach in plan of a high point lie in its window of cells
+        span = int(np.ceil(round(reach / cell, 9)))
+        rows = int(ij[:, 1].max()) + 1
+        window = np.array([dx * rows + dy for dx in range(-span, span + 1) for dy in range(-span, span + 1)], np.int64)
+        around = np.unique((np.unique(keys[high])[:, None] + window[None, :]).ravel())
+        near = roof[np.isin(keys[roof], around)]
+        distance, _ = cKDTree(pts[near]).query(pts[high], distance_upper_bound=reach)
         out[high[~np.isfinite(distance)]] = True
     return out
 
@@ -306,16 +312,19 @@ def annex_segments(segment: np.ndarray, xy: np.ndarray, kept: np.ndarray, candid
     n_rows = int(ij[:, 1].max()) + reach_cells + 1
     keys = ij[:, 0] * n_rows + ij[:, 1]
     is_roof, is_candidate = kept[seg], candidate[seg]
-    roof_keys, candidate_keys = np.unique(keys[is_roof]), np.unique(keys[is_candidate])
-    near_roof = np.zeros(len(seg), bool)
-    near_candidate = np.zeros(len(seg), bool)
-    for dx in range(-reach_cells, reach_cells + 1):
-        for dy in range(-reach_cells, reach_cells + 1):
-            shifted = keys + dx * n_rows + dy
-            near_roof |= np.isin(shifted, roof_keys)
-            near_candidate |= np.isin(shifted, candidate_keys)
-    probe = np.flatnonzero(near_roof & is_candidate)
-    roof = np.flatnonzero(near_candidate & is_roof)
+    window = np.array([dx * n_rows + dy for dx in range(-reach_cells, reach_cells + 1)
+                       for dy in range(-reach_cells, reach_cells + 1)], np.int64)
+    # the candidates' points with a roof cell in their window, the roof points in a candidate's
+    # window: both through the window around the fewer cells (the candidates' are few)
+    candidate_keys = np.unique(keys[is_candidate])
+    around_candidates = np.unique((candidate_keys[:, None] + window[None, :]).ravel())
+    roof = np.flatnonzero(is_roof & np.isin(keys, around_candidates))
+    near_roof_keys = np.unique(keys[roof])
+    probe = np.flatnonzero(is_candidate)
+    near = np.zeros(len(probe), bool)
+    for shift in window:
+        near |= np.isin(keys[probe] + shift, near_roof_keys)
+    probe = probe[near]
     if not len(probe) or not len(roof):
         return np.zeros(count, bool)
     distance, _ = cKDTree(xy[inside[roof]].astype(np.float64)).query(
