@@ -743,6 +743,16 @@ NOTES = {
         "(every level point): AHN3 0.9464 and at 10 / 5 / 2 points/m2 0.9137 / 0.8977 / 0.8467 (balconies "
         "and eaves below roof edges, which its truth calls building), so the band. Left: tile "
         "77060_627760 at 0.9191, the one of the six under issue 16's 0.92.",
+        "Small low buildings dropped by the width test (2026-12-06, measured, not adopted): of the merged "
+        "block's remaining misses, three low buildings (2.2-2.3 m high, 12.6-24.5 m2 by convex hull, "
+        "151-326 points, 72-74 % planar) are dropped by the width test (sqrt(12 l_min) of the segment's "
+        "core: 2.35 / 2.83 / 3.00 m, rims not in the core), not by the area test (the local-density area "
+        "is within 0.85-1.47x the hull area for 80 % of the block's segments; a hull-area test kept the "
+        "same segments). min_roof_width 2.8 m (legal vehicle width 2.55 m): AHN3 0.9498 -> 0.9612, "
+        "77055_627760 0.9387 -> 0.9460, merged 0.9418 -> 0.9428, but the thinned block 0.9064 -> 0.9029, "
+        "merged at 5 points/m2 0.9118 -> 0.9051, synthetic 300 k seed 2 0.9691 -> 0.9662 (its garden "
+        "sheds, 2.7-3.0 m wide and class 1 by the small-structure convention, pass); 2.6 m also cost "
+        "seeds 6 and 8 0.003. The width test cannot tell a 3 m garage from a 3 m shed; left at 3 m.",
     ],
 }
 
