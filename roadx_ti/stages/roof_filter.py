@@ -55,6 +55,12 @@ Needs roof_growing before it (point_data 'roof_segment') and, for the height tes
   survey estimate (roadx_ti.estimates); noise: the kept roofs' own plane noise (roof_plane_noise;
   the survey's height noise counts foliage on wooded tiles); both under info 'edges'. Footprint
   completion reads the roofs as they were before edge growth.
+- covered completion (covered_clearance > 0, after edge growth): roof under a crown (its points
+  overtopped in their footprint cell by more than covered_clearance) has crown points in its
+  neighbourhoods, fails the seed tests and often lies beyond edge growth's reach; such points join
+  a kept roof, round by round through the kNN graph, when they lie on the roof segment's fitted plane
+  (least squares over its points before edge growth, edge_noise sigmas; a segment that is not one
+  plane grows nothing), so the growth cannot creep along local planes into the crown.
 - footprint completion (attach_footprint, kernels/seeds.attach_to_footprints): walls below a
   kept roof's edge, chimneys and roof units standing on it and roof points under overhanging
   foliage join it; off the roof surface only points that are not vegetation-coloured join
@@ -95,6 +101,9 @@ FALLBACK_FOOTPRINT_CELL = 1.0
 JUDGED_NEIGHBOURHOODS = 3
 # annex_reach is measured between sampled points: plus the gap of the sampling, in pulse spacings
 ANNEX_GAP_SPACINGS = 2.0
+# covered completion: at most this share of a point's k neighbours may lie under the roof's plane (a
+# rim's gutter or wall; a roof hides what is under it, a crown's slab has half the crown beneath it)
+COVERED_MAX_BELOW = 0.2
 
 
 def default_footprint_cell(ctx: StageContext) -> float:
@@ -170,6 +179,12 @@ class RoofFilterOptions(StageOptions):
                                        "beside the wall), so a roof's rim is mostly such returns")
     edge_min_height: float = Field(1.0, description="edge points lower than this above the ground "
                                    "(m) never join: the ground and low plants beside a wall")
+    covered_clearance: float = Field(1.0, ge=0, description="covered completion, after edge growth: "
+                                     "a point that the highest point of its footprint cell overtops by "
+                                     "more than this (m, at least one cell) joins a kept roof through the "
+                                     "kNN graph when it lies on the roof segment's fitted plane (edge_noise "
+                                     "sigmas): roof under a crown, whose neighbourhoods hold crown points, "
+                                     "fails the seed tests and lies beyond edge growth's reach; 0 = off")
     attach_footprint: bool = Field(True, description="add walls, chimneys, roof units and roof "
                                    "points under foliage inside or below a kept roof's footprint")
     attach_min_height: float = Field(1.0, description="only points at least this high above "
@@ -283,6 +298,90 @@ def over_roofs(xyz: np.ndarray, core: np.ndarray, grown: np.ndarray, cell: float
         distance, _ = cKDTree(pts[near]).query(pts[high], distance_upper_bound=reach)
         out[high[~np.isfinite(distance)]] = True
     return out
+
+
+def segment_planes(xyz: np.ndarray, segment: np.ndarray, count: int, max_rms: float):
+    """Per segment id 0..count-1: (centroid (count, 3), upward unit normal (count, 3), planar (count,) bool)
+    of the least-squares plane of its points (float64); planar when it holds at least 10 points and
+    their distances to the plane have an RMS of at most ``max_rms`` m (one plane, not a curved or
+    multi-facet segment)."""
+    inside = segment >= 0
+    seg = segment[inside]
+    pts = np.asarray(xyz, np.float64)[inside]
+    sizes = np.bincount(seg, minlength=count).astype(np.float64)
+    centroid = np.stack([np.bincount(seg, pts[:, a], minlength=count) for a in range(3)], 1) / np.maximum(sizes, 1)[:, None]
+    d = pts - centroid[seg]
+    cov = np.zeros((count, 3, 3))
+    for a in range(3):
+        for b in range(a, 3):
+            cov[:, a, b] = cov[:, b, a] = np.bincount(seg, d[:, a] * d[:, b], minlength=count) / np.maximum(sizes, 1)
+    values, vectors = np.linalg.eigh(cov)
+    normal = vectors[:, :, 0] * np.where(vectors[:, 2, 0] < 0, -1.0, 1.0)[:, None]   # upward
+    planar = (sizes >= 10) & (np.sqrt(np.maximum(values[:, 0], 0)) <= max_rms)
+    return centroid, normal, planar
+
+
+def covered_completion(xyz: np.ndarray, knn: np.ndarray, core: np.ndarray, grown: np.ndarray,
+                       eligible: np.ndarray, tol: float, noise: float, min_support: int = 0) -> tuple[np.ndarray, int]:
+    """Roof under crowns: eligible points join, round by round through the kNN graph, the segment
+    of a labelled neighbour (``grown`` >= 0) whose fitted plane (segment_planes over ``core``, the
+    roofs before edge growth; RMS at most 2 ``noise``) they lie within ``tol`` m of, with at least
+    ``min_support`` of their k neighbours on that plane too and at most COVERED_MAX_BELOW of them
+    more than ``tol`` under it (a roof hides what is below it, a crown's slab does not); the smallest
+    such segment id when
+    several qualify, so the result does not depend on point order.
+    (labels int32, points added)."""
+    labels = np.asarray(grown, np.int32).copy()
+    count = int(max(core.max(), labels.max())) + 1 if len(core) else 0
+    if not count or not eligible.any():
+        return labels, 0
+    centroid, normal, planar = segment_planes(xyz, core, count, 2.0 * noise)
+    offset = (centroid * normal).sum(axis=1)            # the planes as n . p = offset
+    knn = np.asarray(knn)
+    k = knn.shape[1]
+    waiting = np.flatnonzero(eligible & (labels < 0))
+    # reverse kNN edges of the waiting points (target -> owner, sorted by target): once a target is
+    # labelled, its owners may qualify
+    targets = knn[waiting].ravel()
+    owners = np.repeat(waiting, k)
+    valid = targets >= 0
+    order = np.argsort(targets[valid], kind="stable")
+    targets, owners = targets[valid][order], owners[valid][order]
+    start = int(np.count_nonzero(labels >= 0))
+    big = np.iinfo(np.int32).max
+    frontier = waiting
+    while len(frontier):
+        frontier = frontier[labels[frontier] < 0]
+        if not len(frontier):
+            break
+        nb = knn[frontier]
+        cand = np.where(nb >= 0, labels[np.where(nb >= 0, nb, 0)], -1)
+        touching = (cand >= 0).any(axis=1)      # most waiting points (crowns) touch no roof
+        frontier, cand = frontier[touching], cand[touching]
+        safe = np.maximum(cand, 0)
+        p = np.asarray(xyz[frontier], np.float64)
+        off = np.abs(np.einsum("mj,mkj->mk", p, normal[safe]) - offset[safe])
+        ok = (cand >= 0) & planar[safe] & (off <= tol)
+        if min_support:
+            # the plane carries the point's neighbourhood, not a slab of a crown that crosses it
+            nb = knn[frontier]
+            q = np.asarray(xyz[np.where(nb >= 0, nb, 0)], np.float64)          # (m, k, 3)
+            height = np.einsum("mij,mkj->mki", q, normal[safe]) - offset[safe][:, :, None]
+            valid = (nb >= 0)[:, None, :]
+            ok &= ((np.abs(height) <= tol) & valid).sum(axis=2) >= min_support
+            # a roof hides what is under it; a crown's slab has the crown's lower half beneath it
+            ok &= ((height < -tol) & valid).sum(axis=2) <= int(COVERED_MAX_BELOW * k)
+        choice = np.where(ok, cand, big).min(axis=1)
+        joins = choice < big
+        labels[frontier[joins]] = choice[joins]      # one synchronous round
+        changed = frontier[joins]
+        lo = np.searchsorted(targets, changed, "left")
+        hi = np.searchsorted(targets, changed, "right")
+        lengths = hi - lo
+        ends = np.cumsum(lengths)
+        slots = np.repeat(lo - (ends - lengths), lengths) + np.arange(int(ends[-1]) if len(ends) else 0)
+        frontier = np.unique(owners[slots])
+    return labels, int(np.count_nonzero(labels >= 0)) - start
 
 
 def planar_shares(segment: np.ndarray, curvature: np.ndarray, count: int, planar_max: float) -> np.ndarray:
@@ -651,6 +750,14 @@ class RoofFilter(Stage):
                                            eligible.astype(np.uint8), reach=reach, tol=float(tol),
                                            tilt=o.edge_tilt, planar_max=float(planar_max), rounds=o.edge_rounds,
                                            min_support=required_planar_neighbours(o.edge_support, int(np.shape(knn)[1]))))
+        if o.covered_clearance > 0:
+            from roadx_ti.kernels.grid_min import overtopped
+
+            cell = spacing_cell(ctx, o.footprint_spacings, o.footprint_min_cell, FALLBACK_FOOTPRINT_CELL)
+            covered = np.asarray(overtopped(cloud.xyz, cell, max(o.covered_clearance, cell))) != 0
+            grown, info["covered_points"] = covered_completion(
+                cloud.xyz, knn, np.where(roof, segment, -1), grown, eligible & covered, float(tol), float(noise),
+                required_planar_neighbours(o.edge_support, int(np.shape(knn)[1])))
         added = grown >= 0
         info["added_points"] = int(np.count_nonzero(added) - np.count_nonzero(roof))
         return np.where(added, grown, segment).astype(np.int32), added, info
