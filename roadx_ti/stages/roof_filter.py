@@ -85,7 +85,7 @@ from pydantic import Field
 from scipy.spatial import cKDTree
 
 from roadx_ti.cloud import Cloud
-from roadx_ti.segments import segment_medians
+from roadx_ti.segments import segment_covariance, segment_medians
 from roadx_ti.sorted_keys import find
 from roadx_ti.stages.base import (CLASS_BUILDING, CLASS_OTHER, DATA_EDGE, Stage, StageContext, StageOptions,
                                   StageResult, estimate, spacing_cell, survey_spacing)
@@ -240,15 +240,8 @@ def occupied_density(xy: np.ndarray, cell: float) -> float:
 def _plan_extents(segment: np.ndarray, xy: np.ndarray, count: int, largest: bool = False) -> np.ndarray:
     """Per segment id 0..count-1: sqrt(12 * the smallest (or largest) eigenvalue of the plan-view
     covariance of its points) in m (a uniformly sampled w x l rectangle gives w, or l). float64."""
-    inside = segment >= 0
-    seg = segment[inside]
-    pts = xy[inside].astype(np.float64)
-    sizes = np.maximum(np.bincount(seg, minlength=count), 1)
-    mean = np.stack([np.bincount(seg, pts[:, a], minlength=count) for a in (0, 1)], 1) / sizes[:, None]
-    d = pts - mean[seg]
-    sxx = np.bincount(seg, d[:, 0] * d[:, 0], minlength=count) / sizes
-    syy = np.bincount(seg, d[:, 1] * d[:, 1], minlength=count) / sizes
-    sxy = np.bincount(seg, d[:, 0] * d[:, 1], minlength=count) / sizes
+    _, _, cov = segment_covariance(segment, xy, count)
+    sxx, syy, sxy = cov[:, 0, 0], cov[:, 1, 1], cov[:, 0, 1]
     spread = np.sqrt(((sxx - syy) / 2) ** 2 + sxy ** 2)
     eigen = (sxx + syy) / 2 + (spread if largest else -spread)
     return np.sqrt(12 * np.maximum(eigen, 0))
@@ -265,6 +258,13 @@ def cut_lengths(segment: np.ndarray, xy: np.ndarray, count: int, at_edge: np.nda
     on = np.where(at_edge, segment, -1)
     length = _plan_extents(on, xy, count, largest=True)
     return np.where(np.bincount(on[on >= 0], minlength=count) >= 3, length, 0.0)
+
+
+def _cells_around(keys: np.ndarray, span: int, rows: int) -> np.ndarray:
+    """The sorted unique cell keys (column * rows + row) within ``span`` cells (square window) of
+    any of ``keys``."""
+    window = np.array([dx * rows + dy for dx in range(-span, span + 1) for dy in range(-span, span + 1)], np.int64)
+    return np.unique((np.unique(keys)[:, None] + window[None, :]).ravel())
 
 
 def over_roofs(xyz: np.ndarray, core: np.ndarray, grown: np.ndarray, cell: float, height: float,
@@ -285,15 +285,11 @@ def over_roofs(xyz: np.ndarray, core: np.ndarray, grown: np.ndarray, cell: float
     roof_keys = keys[roof][order]
     cells, first = np.unique(roof_keys, return_index=True)
     top = np.maximum.reduceat(pts[roof, 2][order], first)
-    at = np.minimum(np.searchsorted(cells, keys[new]), len(cells) - 1)
-    in_roof_cell = cells[at] == keys[new]
+    at, in_roof_cell = find(cells, keys[new])
     high = new[in_roof_cell & (pts[new, 2] > top[at] + height)]
     if len(high):
         # the roof points within reach in plan of a high point lie in its window of cells
-        span = int(np.ceil(round(reach / cell, 9)))
-        rows = int(ij[:, 1].max()) + 1
-        window = np.array([dx * rows + dy for dx in range(-span, span + 1) for dy in range(-span, span + 1)], np.int64)
-        around = np.unique((np.unique(keys[high])[:, None] + window[None, :]).ravel())
+        around = _cells_around(keys[high], int(np.ceil(round(reach / cell, 9))), int(ij[:, 1].max()) + 1)
         near = roof[np.isin(keys[roof], around)]
         distance, _ = cKDTree(pts[near]).query(pts[high], distance_upper_bound=reach)
         out[high[~np.isfinite(distance)]] = True
@@ -305,16 +301,7 @@ def segment_planes(xyz: np.ndarray, segment: np.ndarray, count: int, max_rms: fl
     of the least-squares plane of its points (float64); planar when it holds at least 10 points and
     their distances to the plane have an RMS of at most ``max_rms`` m (one plane, not a curved or
     multi-facet segment)."""
-    inside = segment >= 0
-    seg = segment[inside]
-    pts = np.asarray(xyz, np.float64)[inside]
-    sizes = np.bincount(seg, minlength=count).astype(np.float64)
-    centroid = np.stack([np.bincount(seg, pts[:, a], minlength=count) for a in range(3)], 1) / np.maximum(sizes, 1)[:, None]
-    d = pts - centroid[seg]
-    cov = np.zeros((count, 3, 3))
-    for a in range(3):
-        for b in range(a, 3):
-            cov[:, a, b] = cov[:, b, a] = np.bincount(seg, d[:, a] * d[:, b], minlength=count) / np.maximum(sizes, 1)
+    sizes, centroid, cov = segment_covariance(segment, xyz, count)
     values, vectors = np.linalg.eigh(cov)
     normal = vectors[:, :, 0] * np.where(vectors[:, 2, 0] < 0, -1.0, 1.0)[:, None]   # upward
     planar = (sizes >= 10) & (np.sqrt(np.maximum(values[:, 0], 0)) <= max_rms)
@@ -411,19 +398,11 @@ def annex_segments(segment: np.ndarray, xy: np.ndarray, kept: np.ndarray, candid
     n_rows = int(ij[:, 1].max()) + reach_cells + 1
     keys = ij[:, 0] * n_rows + ij[:, 1]
     is_roof, is_candidate = kept[seg], candidate[seg]
-    window = np.array([dx * n_rows + dy for dx in range(-reach_cells, reach_cells + 1)
-                       for dy in range(-reach_cells, reach_cells + 1)], np.int64)
-    # the candidates' points with a roof cell in their window, the roof points in a candidate's
-    # window: both through the window around the fewer cells (the candidates' are few)
-    candidate_keys = np.unique(keys[is_candidate])
-    around_candidates = np.unique((candidate_keys[:, None] + window[None, :]).ravel())
-    roof = np.flatnonzero(is_roof & np.isin(keys, around_candidates))
-    near_roof_keys = np.unique(keys[roof])
+    # the roof points in a candidate's window of cells, and the candidates' points with one of
+    # those in theirs: both through windows around the fewer cells (the candidates' are few)
+    roof = np.flatnonzero(is_roof & np.isin(keys, _cells_around(keys[is_candidate], reach_cells, n_rows)))
     probe = np.flatnonzero(is_candidate)
-    near = np.zeros(len(probe), bool)
-    for shift in window:
-        near |= np.isin(keys[probe] + shift, near_roof_keys)
-    probe = probe[near]
+    probe = probe[np.isin(keys[probe], _cells_around(keys[roof], reach_cells, n_rows))]
     if not len(probe) or not len(roof):
         return np.zeros(count, bool)
     distance, _ = cKDTree(xy[inside[roof]].astype(np.float64)).query(
@@ -753,7 +732,7 @@ class RoofFilter(Stage):
         if o.covered_clearance > 0:
             from roadx_ti.kernels.grid_min import overtopped
 
-            cell = spacing_cell(ctx, o.footprint_spacings, o.footprint_min_cell, FALLBACK_FOOTPRINT_CELL)
+            cell = self.footprint_cell_and_wall_reach(ctx)[0]
             covered = np.asarray(overtopped(cloud.xyz, cell, max(o.covered_clearance, cell))) != 0
             grown, info["covered_points"] = covered_completion(
                 cloud.xyz, knn, np.where(roof, segment, -1), grown, eligible & covered, float(tol), float(noise),
