@@ -308,6 +308,8 @@ class _UniqueKeyLoader(yaml.SafeLoader):
 def load(path: str | Path, overrides: list[str] = ()) -> RunConfig:
     """Read, override and validate a YAML config; every mistake raises ConfigError (one line)."""
     path = Path(path)
+    if path.is_dir():
+        raise ConfigError(f"config file {path} is a folder; give the YAML file (e.g. configs/road_uav.yaml)")
     if not path.is_file():
         raise ConfigError(f"config file {path} does not exist")
     try:

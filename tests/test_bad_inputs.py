@@ -314,6 +314,14 @@ def case_empty_config(d):
     return _run(config, d, write_las(d / "in" / "ground.las", bumpy_ground(500)), code=2, message="is empty")
 
 
+def case_config_is_a_folder(d):
+    """A folder where the config goes (a path typed one level short): exit 2, 'is a folder' (it said
+    the config 'does not exist', which it does)."""
+    config = d / "in" / "configs"
+    config.mkdir()
+    return _run(config, d, write_las(d / "in" / "ground.las", bumpy_ground(500)), code=2, message="is a folder")
+
+
 def case_config_not_utf8(d):
     """A config saved in Latin-1 (a comment with 'café'): exit 2 in one line saying it is not UTF-8
     (it was 'unexpected error: UnicodeDecodeError', exit 1)."""
