@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import os
 import sys
 import time
@@ -67,6 +68,8 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--kind", required=True, choices=["uav-road", "uav-road-v1", "als-roof", "als-roof-v1"])
     s.add_argument("--points", required=True, type=parse_point_count)
     s.add_argument("--seed", type=_seed, default=0)
+    s.add_argument("--density", type=_positive_density, default=None, metavar="POINTS_PER_M2",
+                   help="points per m2 of the scene (its side follows; default: the kind's own)")
     s.add_argument("-o", "--output", required=True)
     b = sub.add_parser("bench", help="benchmarks: kernels and pipelines against their anchors")
     from roadx_ti import bench
@@ -87,6 +90,17 @@ def _seed(text: str) -> int:
         raise argparse.ArgumentTypeError(f"not a seed: {text!r}") from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"seed must be >= 0, got {value}")
+    return value
+
+
+def _positive_density(text: str) -> float:
+    """argparse type of synth --density: a finite number of points per m2 > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a density: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"density must be > 0 points per m2, got {text}")
     return value
 
 
@@ -577,7 +591,7 @@ def cmd_synth(args) -> int:
                          f"{memory.format_size(budget)} this run may use: write a smaller scene, or "
                          "several (other seeds) into one folder, which runs as a catalog")
     try:
-        cloud = synthetic.generate(args.kind, args.points, args.seed)
+        cloud = synthetic.generate(args.kind, args.points, args.seed, density=args.density)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     io.write(out, cloud, classification=cloud.classification)

@@ -108,7 +108,9 @@ def test_roof_pipeline_cloth_not_held_down_by_low_returns():
 
     cloud = synthetic.generate("als-roof", 300_000, 6)
     cfg = config.load(REPO / "configs" / "roof_als.yaml")
-    assert cfg.stage_list()[0][0] == "low_noise"
+    # low noise runs on the points before the cloth (after the downsampling of denser surveys)
+    names = [name for name, _ in cfg.stage_list()]
+    assert names.index("low_noise") < names.index("cloth_ground")
     result = pipelines.run(cloud, pipelines.build_stages(cfg.stage_list()), ctx=StageContext(seed=0))
     scores = metrics.scores(cloud.classification == 6, result.classification == 6)
     assert scores["type2"] < 0.01, scores                  # 3.8 % without the stage

@@ -130,6 +130,22 @@ def test_als_extent_follows_density():
     assert abs(c.xyz[:, 0].max() - side) < 1.0 and abs(c.xyz[:, 1].max() - side) < 1.0
 
 
+
+def test_density_sets_the_side_and_keeps_the_layout():
+    """generate(density=): the scene's side is sqrt(n / density), never under one block; one
+    side, one layout (the same block at 40 and 80 points/m2 is the same suburb, denser)."""
+    n = 60_000
+    for per_m2, side in ((2.0, math.sqrt(n / 2.0)), (40.0, 100.0), (80.0, 100.0)):
+        c = generate("als-roof", n, seed=0, density=per_m2)
+        assert abs(c.xyz[:, 0].max() - side) < 1.0 and abs(c.xyz[:, 1].max() - side) < 1.0, per_m2
+    a = generate("als-roof", 20_000, seed=3, density=40.0)
+    b = generate("als-roof", 40_000, seed=3, density=80.0)
+    assert np.mean(a.classification == 6) == pytest.approx(np.mean(b.classification == 6), abs=0.02)
+    for bad in (0, -1.0, float("nan"), "80"):
+        with pytest.raises(ValueError):
+            generate("als-roof", 20_000, density=bad)
+
+
 @pytest.mark.parametrize("kind", ["uav-road", "uav-road-v1"])
 def test_one_million_points_is_fast(kind):
     t0 = time.perf_counter()

@@ -67,10 +67,18 @@ def estimate(ctx: "StageContext", key: str, default=None):
     return default if value is None else value
 
 
+# ctx.facts key: share of the survey's points that the pipeline's downsampling stages keep (their
+# product; 1 or absent: every point), a survey-wide value (from the survey's estimates, not a tile's draw)
+SAMPLED_SHARE = "sampled_share"
+
+
 def survey_spacing(ctx: "StageContext"):
-    """The survey's pulse spacing (m), or its point spacing where the input has no returns; None
-    when neither was measured."""
-    return estimate(ctx, "pulse_spacing_m") or estimate(ctx, "point_spacing_m")
+    """The survey's pulse spacing (m), or its point spacing where the input has no returns, at the
+    density the stages see: over the share of the points downsampling kept (SAMPLED_SHARE) the
+    spacing is 1 / sqrt(share) times the survey's. None when neither was measured."""
+    spacing = estimate(ctx, "pulse_spacing_m") or estimate(ctx, "point_spacing_m")
+    share = float(ctx.facts.get(SAMPLED_SHARE) or 1.0)
+    return spacing / np.sqrt(share) if spacing and share < 1.0 else spacing
 
 
 def spacing_cell(ctx: "StageContext", spacings: float, min_cell: float, fallback: float) -> float:

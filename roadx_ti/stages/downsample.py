@@ -18,7 +18,8 @@ from pydantic import Field, model_validator
 from roadx_ti import isolation
 from roadx_ti.chunks import over_chunks
 from roadx_ti.cloud import Cloud
-from roadx_ti.stages.base import MIN_BUFFER, Stage, StageContext, StageOptions, StageResult, estimate
+from roadx_ti.stages.base import (MIN_BUFFER, SAMPLED_SHARE, Stage, StageContext, StageOptions, StageResult,
+                                  estimate)
 
 
 class UniformOptions(StageOptions):
@@ -70,7 +71,14 @@ class UniformDownsample(Stage):
         if o.target_density is not None:
             # the survey's density (a tile keeps the survey-wide share of its points)
             ratio = o.kept_share(density=estimate(ctx, "density_per_m2"))
+        if ratio is not None and ratio < 1.0:
+            # later stages' spacings follow the kept density (stages.base.survey_spacing)
+            ctx.facts[SAMPLED_SHARE] = float(ctx.facts.get(SAMPLED_SHARE) or 1.0) * ratio
         every = o.target_points is None and ratio == 1.0
+        if every and o.pattern == "hashed":
+            # every point kept (a survey not denser than the target): nothing to hash
+            return StageResult(keep=np.ones(cloud.n, bool), mode="subsample",
+                               info={"target_points": int(cloud.n), "ratio": 1.0})
         isolated = None if every or not cloud.n else isolation.isolated_in(cloud.xyz, isolation.SMALL_PART, ctx)
         rest = None if isolated is None else np.flatnonzero(~isolated)
         n = cloud.n if rest is None else len(rest)

@@ -27,6 +27,8 @@ luminance (x 257; photogrammetry has no sensor intensity); als-roof a per-materi
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from roadx_ti.cloud import Cloud
@@ -55,15 +57,21 @@ __all__ = ["KINDS", "ORIGINS", "MIN_POINTS", "SCENES", "generate", "CLASS_OTHER"
            "CLASS_ROAD", "CLASS_HIGH_NOISE"]
 
 
-def generate(kind: str, n_points: int, seed: int = 0) -> Cloud:
-    """A synthetic labelled scene of exactly ``n_points`` points (see the module docstring)."""
+def generate(kind: str, n_points: int, seed: int = 0, density: float | None = None) -> Cloud:
+    """A synthetic labelled scene of exactly ``n_points`` points (see the module docstring).
+    ``density``: points per m2 of the scene's square (its side sqrt(n_points / density), never under
+    one block, so the layout of a seed is the same at any density that gives the same side); None:
+    the kind's own (als-roof 15, uav-road drawn per seed)."""
     if kind not in SCENES:
         raise ValueError(f"unknown synthetic scene kind {kind!r}; allowed: {', '.join(KINDS)}")
     if isinstance(n_points, bool) or int(n_points) != n_points or int(n_points) < MIN_POINTS:
         raise ValueError(f"n_points must be an integer >= {MIN_POINTS}, got {n_points!r}")
+    if density is not None and not (isinstance(density, (int, float)) and math.isfinite(density) and density > 0):
+        raise ValueError(f"density must be a number of points per m2 > 0, got {density!r}")
     n, seed = int(n_points), int(seed)
     scene_cls = SCENES[kind]
-    scene = scene_cls(scene_cls.side_for(n, seed), seed)
+    side = scene_cls.side_for(n, seed) if density is None else max(math.sqrt(n / float(density)), scene_cls.BLOCK)
+    scene = scene_cls(side, seed)
     xyz, rgb8, intensity, cls = scene.sample_exact(n, scene_cls.OUTLIER_FRACTION)
     rgb16 = (np.clip(np.rint(rgb8), 0, 255).astype(np.uint16) * np.uint16(257))
     return Cloud(xyz=xyz, origin=np.array(scene_cls.ORIGIN, dtype=np.float64), rgb=rgb16,
