@@ -434,6 +434,17 @@ NOTES = {
         "uav-road 1 M points at 800 points/m2 (`synthetic.generate(..., density=800)`: a 35 m scene), seeds 0"
         " / 1 / 2: E1 / E2 0.92 / 2.68, 3.80 / 1.34, 1.59 / 2.73 %, within the per-scene bounds (R1 thins to "
         "its 60 points/m2).",
+        "Below the generator's 50 points/m2 (2026-12-06, at b4683b3, `synthetic.generate('uav-road', 500_000,"
+        " seed, density=)`, not addressed): seeds 0-4 at 40 points/m2 E1 / E2 2.53 / 0.52, 1.90 / 0.92, 10.41"
+        " / 0.39, 8.78 / 2.71, 34.91 / 0.65 %; at 20 points/m2 5.32 / 0.63, 3.15 / 1.70, 10.36 / 0.58, 10.92 "
+        "/ 1.45, 21.32 / 0.83 %. The same layouts at 100 points/m2 (1.25 M points): seed 2 1.02 / 0.38, seed "
+        "3 1.86 / 2.31, seed 4 24.58 / 0.55 %: seeds 2 and 3 lose streets to the density (seed 2: a side "
+        "street under tree crowns and their shadows, found at 100), seed 4 to its look at any density (a "
+        "lighter north-south street beside a dark east-west one, 4.4 cm height noise: its 8-11 cm kerbs blur,"
+        " road_regions warns). Not the colour balance: colour off, seed 2 9.69 %, seed 3 8.07 / 6.06 %; "
+        "`colour_density_power` 1.0 instead of 1.5: seeds 0-4 at 40 no better (seed 4 37.90 %), AHN3 E1 6.88 "
+        "-> 12.89 %. Not the component rules (keep_area and keep_area_kerb 0: unchanged); the filters' k 16 "
+        "instead of 12: seed 3 42.70 %.",
         "The seconds column is wall time in process on the shared 2-core machine; the 2026-12-01 run "
         "shared it with two other jobs, so its times are inflated (benchmarks/RESULTS.md has the timed "
         "A/B).",
