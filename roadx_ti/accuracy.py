@@ -444,7 +444,11 @@ NOTES = {
         " road_regions warns). Not the colour balance: colour off, seed 2 9.69 %, seed 3 8.07 / 6.06 %; "
         "`colour_density_power` 1.0 instead of 1.5: seeds 0-4 at 40 no better (seed 4 37.90 %), AHN3 E1 6.88 "
         "-> 12.89 %. Not the component rules (keep_area and keep_area_kerb 0: unchanged); the filters' k 16 "
-        "instead of 12: seed 3 42.70 %.",
+        "instead of 12: seed 3 42.70 %. Seed 2's side street at 40 points/m2: its 55 regions (5,702 points) "
+        "have no pair with a road region (the junction's regions went to not road) and kerbs along 646 of "
+        "their 2,090 boundary edges to not-road regions (contrast-weighted smoothness 1,308, internal kerb-"
+        "like pairs 66 edges): not road is cheaper; at 100 points/m2 kerbs along 1,237 of 1,603 such edges "
+        "and 663 edges to road regions: road. Kerb detection along the street fell with the density.",
         "The seconds column is wall time in process on the shared 2-core machine; the 2026-12-01 run "
         "shared it with two other jobs, so its times are inflated (benchmarks/RESULTS.md has the timed "
         "A/B).",
