@@ -18,7 +18,7 @@ import numpy as np
 from roadx_ti.cloud import Cloud
 from roadx_ti.ordering import canonical_order
 from roadx_ti.stages import stage_class
-from roadx_ti.stages.base import CLASS_OTHER, DATA_EDGE, ESTIMATES, StageContext, check_order
+from roadx_ti.stages.base import CLASS_OTHER, DATA_EDGE, ESTIMATES, SAMPLED_SHARE, StageContext, check_order
 
 log = logging.getLogger("roadx_ti")
 
@@ -96,6 +96,9 @@ def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class
     def points(index):
         return cloud.subset(index if order is None else order[index])
 
+    # every run starts on all of its points (a context handed to a second run keeps its estimates,
+    # not the share an earlier run's downsampling kept)
+    ctx.facts.pop(SAMPLED_SHARE, None)
     if ESTIMATES not in ctx.facts:
         # measured on the whole input before any stage (a tiled run hands in the survey's)
         from roadx_ti.estimates import measure

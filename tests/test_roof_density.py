@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from roadx_ti import config, metrics, pipelines, synthetic
+from roadx_ti.stages import stage_class
 from roadx_ti.stages.base import ESTIMATES, SAMPLED_SHARE, StageContext, survey_spacing
 from roadx_ti.stages.roof_filter import low_planar_bound
 from tests.conftest import REPO, switch_backend
@@ -72,3 +73,18 @@ def test_roof_downsampling_keeps_sparser_surveys_whole_and_thins_denser_ones():
         kept = stage.run(cloud, ctx).keep
         assert abs(kept.mean() - share) < 0.02, (per_m2, kept.mean())
         assert ctx.facts.get(SAMPLED_SHARE, 1.0) == pytest.approx(share)
+
+
+def test_a_second_run_with_the_same_context_starts_on_every_point():
+    """The sampled share belongs to one run: a context handed to a second run (the embedding API
+    allows it; its survey estimates are reused) does not compound the downsampling's share."""
+    switch_backend("cpu")
+    cloud = synthetic.generate("als-roof", 40_000, seed=1)       # 4 points/m2: one 100 m block
+    options = stage_class("uniform_downsample").Options(target_density=2, pattern="hashed")
+    stages = pipelines.build_stages([("uniform_downsample", options)])
+    ctx = StageContext()
+    first = pipelines.run(cloud, stages, ctx=ctx)
+    share = ctx.facts[SAMPLED_SHARE]
+    second = pipelines.run(cloud, stages, ctx=ctx)
+    assert ctx.facts[SAMPLED_SHARE] == pytest.approx(share)
+    np.testing.assert_array_equal(first.processed, second.processed)
