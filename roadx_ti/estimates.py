@@ -13,7 +13,10 @@ tile), logged, and written to the summary JSON:
 - ``height_noise_m``: robust spread of slope-corrected height differences between neighbours
   whose neighbourhoods are among the flatter half (1.4826 x median absolute difference /
   sqrt 2): the noise of one point on a smooth surface;
-- ``colour_noise``: the same for grey levels (8-bit units) where the input has colour.
+- ``colour_noise``: the same for grey levels (8-bit units) where the input has colour;
+- ``terrain_grade``: median grade of the terrain (rise over run), from the lowest sample point of
+  each TERRAIN_CELL plan cell lowered to its 5 x 5 cells' lowest (buildings and crowns that fill
+  cells do not raise it): the plan gradient between cells and their east and north neighbours.
 """
 from __future__ import annotations
 
@@ -27,6 +30,7 @@ from roadx_ti.cloud import Cloud
 log = logging.getLogger("roadx_ti")
 
 AREA_CELL = 1.0          # m: plan cells counted as occupied area
+TERRAIN_CELL = 10.0      # m: plan cells whose lowest points stand for the terrain (terrain_grade)
 SAMPLE_POINTS = 200_000  # points the neighbour statistics are measured on
 MAD_TO_SIGMA = 1.4826
 
@@ -87,12 +91,55 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     smooth = flat[a] & flat[b]
     dz = dz[smooth] if smooth.sum() >= 100 else dz
     out["height_noise_m"] = round(float(MAD_TO_SIGMA * np.median(np.abs(dz)) / np.sqrt(2.0)), 4)
+    grade = terrain_grade(xyz)
+    if grade is not None:
+        out["terrain_grade"] = round(grade, 4)
     rgb = cloud.rgb8()
     if rgb is not None and np.ptp(rgb) > 0:
         grey = rgb[pick].mean(axis=1)
         out["colour_noise"] = round(float(MAD_TO_SIGMA * np.median(np.abs(grey[b] - grey[a])) / np.sqrt(2.0)), 3)
     log.info("survey estimates: %s", out)
     return out
+
+
+MIN_TERRAIN_PAIRS = 8     # cells with both neighbours occupied that a terrain grade needs
+TERRAIN_REACH = 2         # cells: a cell's terrain is the lowest of the (2 r + 1)^2 cells around it
+
+
+def terrain_grade(xyz: np.ndarray, cell: float = TERRAIN_CELL) -> float | None:
+    """Median plan grade (rise over run) of the terrain: the lowest point of each ``cell`` m plan
+    cell, lowered to the lowest of the 5 x 5 cells around it (TERRAIN_REACH: a building or a crown
+    up to four cells across fills cells and raises their minima, not their neighbourhood's), and the grade between a cell and the cells
+    east and north of it where both are occupied; None when fewer than MIN_TERRAIN_PAIRS cells
+    have both. Occupied cells only, found by their sorted keys (no grid over the bounding box)."""
+    if len(xyz) == 0:
+        return None
+    key = np.floor(np.asarray(xyz[:, :2], np.float64) / cell).astype(np.int64)
+    key -= key.min(axis=0) - 1
+    width = int(key[:, 1].max()) + 2
+    flat = key[:, 0] * width + key[:, 1]
+    cells, inverse = np.unique(flat, return_inverse=True)
+    low = np.full(len(cells), np.inf)
+    np.minimum.at(low, inverse.ravel(), np.asarray(xyz[:, 2], np.float64))
+
+    def at(offset):
+        """(index, present) of the cell ``offset`` keys away from each cell."""
+        where = np.searchsorted(cells, cells + offset)
+        clipped = np.minimum(where, len(cells) - 1)
+        return clipped, (where < len(cells)) & (cells[clipped] == cells + offset)
+    ground = low.copy()
+    for dx in range(-TERRAIN_REACH, TERRAIN_REACH + 1):
+        for dy in range(-TERRAIN_REACH, TERRAIN_REACH + 1):
+            index, present = at(dx * width + dy)
+            ground = np.where(present, np.minimum(ground, low[index]), ground)
+    east, has_east = at(width)
+    north, has_north = at(1)
+    both = has_east & has_north
+    if both.sum() < MIN_TERRAIN_PAIRS:
+        return None
+    gx = (ground[east[both]] - ground[both]) / cell
+    gy = (ground[north[both]] - ground[both]) / cell
+    return float(np.median(np.hypot(gx, gy)))
 
 
 @dataclass(frozen=True)

@@ -92,14 +92,29 @@ def test_a_second_run_with_the_same_context_starts_on_every_point():
 
 
 @pytest.mark.slow
-def test_roofs_of_a_town_on_a_hillside():
-    """The matrix's 300 k seed 0 tilted to a 30 % grade (accuracy.tilted): configs/roof_als.yaml's
-    cloth (slope_smooth) follows the hillside. Measured when slope_smooth was turned on: 0.9746 flat,
-    0.9528 tilted; 0.6756 tilted without it (planar hillside the rigid cloth stayed off became roof)."""
+@pytest.mark.parametrize("grade", [0.3, 0.4])
+def test_roofs_of_a_town_on_a_hillside(grade):
+    """The matrix's 300 k seed 0 tilted to a 30 / 40 % grade (accuracy.tilted): configs/roof_als.yaml's
+    cloth (slope_smooth, rigidness auto: 1 on this terrain) follows the hillside. Measured: 0.9746
+    flat; 0.9735 / 0.9643 tilted; with the rigid cloth (rigidness 3) and slope_smooth 0.9528 /
+    0.3794, and at 30 % without slope_smooth 0.6756 (planar hillside the cloth stayed off became
+    roof)."""
     from roadx_ti.accuracy import tilted
 
     switch_backend("cpu")
     cloud = synthetic.generate("als-roof", 300_000, seed=0)
-    flat, hillside = _kappa(cloud), _kappa(tilted(cloud, 0.3))
-    assert hillside >= 0.94, (flat, hillside)
-    assert hillside >= flat - 0.03, (flat, hillside)
+    flat, hillside = _kappa(cloud), _kappa(tilted(cloud, grade))
+    assert hillside >= 0.95, (flat, hillside)
+    assert hillside >= flat - 0.02, (flat, hillside)
+
+
+def test_cloth_rigidness_auto_follows_the_terrain_grade():
+    from roadx_ti.stages.cloth import ClothOptions, rigidness_for
+
+    auto = ClothOptions(rigidness="auto", steep_grade=0.15)
+    assert rigidness_for(auto, StageContext(facts={ESTIMATES: {"terrain_grade": 0.02}})) == 3
+    assert rigidness_for(auto, StageContext(facts={ESTIMATES: {"terrain_grade": 0.3}})) == 1
+    assert rigidness_for(auto, StageContext()) == 3                  # not measured: the urban setting
+    assert rigidness_for(ClothOptions(rigidness=2), StageContext(facts={ESTIMATES: {"terrain_grade": 0.3}})) == 2
+    with pytest.raises(ValueError):
+        ClothOptions(rigidness=4)

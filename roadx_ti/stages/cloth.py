@@ -17,6 +17,8 @@ import inspect
 from dataclasses import dataclass
 
 import numpy as np
+from typing import Literal
+
 from pydantic import Field
 
 from roadx_ti import isolation, memory
@@ -24,7 +26,7 @@ from roadx_ti.cloud import Cloud
 from roadx_ti.errors import DataError
 from roadx_ti.kernels.cloth import LATTICE_PERIOD, ClothResult, LatticeTooLarge, csf
 from roadx_ti.stages.base import (CLASS_GROUND, GROUND_SURFACE, SURVEY_Z_MIN, GroundSurface, Stage, StageContext,
-                                  StageOptions, StageResult)
+                                  StageOptions, StageResult, estimate)
 
 # In a tile, the cloth starts above the survey's lowest point (as the whole run's does), but never
 # more than this far below the tile's own lowest point: an archive's lowest point says nothing about
@@ -44,8 +46,12 @@ _CSF = {name: p.default for name, p in inspect.signature(csf).parameters.items()
 class ClothOptions(StageOptions):
     cloth_resolution: float = Field(_CSF["cloth_resolution"], gt=0, description="C_r: particle spacing "
                                     "of the cloth (m)")
-    rigidness: int = Field(_CSF["rigidness"], ge=1, le=3, description="cloth stiffness, 1 (steep "
-                           "terrain) .. 3 (flat, urban) (constraint passes as in the CSF package)")
+    rigidness: Literal[1, 2, 3, "auto"] = Field(_CSF["rigidness"], description="cloth stiffness, 1 (steep "
+                                                "terrain) .. 3 (flat, urban) (constraint passes as in the CSF "
+                                                "package); 'auto': 1 where the survey's terrain_grade estimate "
+                                                "(roadx_ti.estimates) exceeds steep_grade, else 3")
+    steep_grade: float = Field(0.15, gt=0, description="rigidness 'auto': terrain steeper than this median "
+                               "grade (rise over run) gets the steep-terrain cloth (unitless)")
     time_step: float = Field(_CSF["time_step"], gt=0, description="simulation time step (dimensionless, "
                              "the package's default)")
     iterations: int = Field(_CSF["iterations"], ge=1, description="C_n: maximum simulation iterations (count)")
@@ -109,11 +115,22 @@ class Cloths:
         return max((int(r.iterations) for _, r in self.parts), default=0)
 
 
+def rigidness_for(options: ClothOptions, ctx: StageContext) -> int:
+    """The cloth's rigidness: the option's, or for 'auto' 1 on terrain steeper than steep_grade
+    (the survey's terrain_grade estimate; every tile of a run gets the same), else 3. On a 30 %
+    hillside a rigid cloth stays off the ground and planar hillside passes for roof (ACCURACY.md's
+    notes); on flat towns the stiff cloth keeps out of large flat roofs."""
+    if options.rigidness != "auto":
+        return int(options.rigidness)
+    grade = estimate(ctx, "terrain_grade")
+    return 1 if grade is not None and float(grade) > options.steep_grade else 3
+
+
 def _simulate(options: ClothOptions, xyz: np.ndarray, origin, ctx: StageContext, stage: str) -> ClothResult:
     lattice = world_lattice(origin, options.cloth_resolution) if options.align_to_world else None
     try:
         return csf(xyz, cloth_resolution=options.cloth_resolution,
-                   rigidness=options.rigidness, time_step=options.time_step,
+                   rigidness=rigidness_for(options, ctx), time_step=options.time_step,
                    iterations=options.iterations, class_threshold=options.class_threshold,
                    slope_smooth=options.slope_smooth, lattice_origin=lattice,
                    start_z=start_z(xyz, ctx) if options.align_to_world else None,
@@ -162,10 +179,12 @@ class _ClothStage(Stage):
         return max(CLOTH_SPAN, CLOTH_STIFFNESS_PARTICLES * float(options.cloth_resolution))
 
 
-def _info(result: Cloths) -> dict:
+def _info(result: Cloths, options: ClothOptions, ctx: StageContext) -> dict:
     shape = list(result.largest.cloth_z.shape) if result.largest is not None else [0, 0]
     info = {"ground": int(result.ground.sum()), "cloth_shape": shape,
-            "iterations": result.iterations}
+            "iterations": result.iterations, "rigidness": rigidness_for(options, ctx)}
+    if options.rigidness == "auto":
+        info["terrain_grade"] = estimate(ctx, "terrain_grade")
     if len(result.parts) > 1:
         info["parts"] = len(result.parts)
     if result.isolated:
@@ -183,7 +202,7 @@ class ClothSmooth(_ClothStage):
             return StageResult()
         result = _run_cloth(self.options, cloud, ctx, self.name)
         _export_ground(result, cloud, ctx)
-        return StageResult(keep=result.ground, info=_info(result))
+        return StageResult(keep=result.ground, info=_info(result, self.options, ctx))
 
 
 class ClothGround(_ClothStage):
@@ -201,4 +220,4 @@ class ClothGround(_ClothStage):
         # aligned with the working points; the pipeline narrows it to the kept ones
         height = result.height_above(cloud.xyz)
         return StageResult(keep=keep, removed_class=CLASS_GROUND,
-                           point_data={"height_above_ground": height}, info=_info(result))
+                           point_data={"height_above_ground": height}, info=_info(result, self.options, ctx))
