@@ -430,6 +430,14 @@ NOTES = {
         " 7 2.88 %, AHN3 4.95 %; kerb edges thresholded at probability 0.5, or 8 instead of 32: no change. "
         "Cost at 4 M seed 0: 0.57 s of cut over a 117 k-point band. Not adopted: no variant made the three "
         "deliveries pass on even one scene without losing road elsewhere.",
+        "The point-level cut of the note above allowed to add road only (no road point leaves the road; "
+        "2026-12-06, prototype not committed): over 300 k seeds 0-9 and 60-79 9 out of the bounds either way "
+        "(63 and 71 in, 61 and 79 out), median E1 1.72 -> 1.17 %, median E2 1.22 -> 1.44 % (the kerb faces "
+        "and the foot of lowered kerbs join), AHN3 6.88 / 1.10 -> 3.23 / 1.62 %; invariance on seed 2 99.52 /"
+        " 99.41 / 99.37 %. With the colour difference across an edge weakening its smoothness (3 or 6 colour-"
+        "noise sigmas) the gains and losses both shrink (E2 of seeds 1 / 61 / 79 2.45-2.48 / 3.05-3.09 / "
+        "2.54-2.64 %, AHN3 E1 4.5-5.0 %); points the growth adds that stand over the road's local surface by "
+        "more than 1-2 noise sigmas taken out again: E2 3.52-3.89 % on seed 61. Not adopted.",
         "Denser than the generator's 50-300 points/m2 (2026-12-06, at b4683b3, not used to choose anything): "
         "uav-road 1 M points at 800 points/m2 (`synthetic.generate(..., density=800)`: a 35 m scene), seeds 0"
         " / 1 / 2: E1 / E2 0.92 / 2.68, 3.80 / 1.34, 1.59 / 2.73 %, within the per-scene bounds (R1 thins to "
