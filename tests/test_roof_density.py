@@ -118,3 +118,18 @@ def test_cloth_rigidness_auto_follows_the_terrain_grade():
     assert rigidness_for(ClothOptions(rigidness=2), StageContext(facts={ESTIMATES: {"terrain_grade": 0.3}})) == 2
     with pytest.raises(ValueError):
         ClothOptions(rigidness=4)
+
+
+@pytest.mark.slow
+def test_a_noisier_sensor_keeps_its_low_houses():
+    """The matrix's 300 k seed 2 with 4 cm more height noise (about 5 cm in all): every roof loses
+    planar points, so the low-and-rough test's share follows the survey's kept high roofs
+    (roof_filter.low_planar_reference). Measured: 0.9699 as delivered, 0.9685 noisy; 0.9221 with
+    the fixed 15 % (low houses dropped as hedges)."""
+    from dataclasses import replace
+
+    switch_backend("cpu")
+    cloud = synthetic.generate("als-roof", 300_000, seed=2)
+    xyz = cloud.xyz.copy()
+    xyz[:, 2] += np.random.default_rng(5).normal(0, 0.04, cloud.n).astype(np.float32)
+    assert _kappa(replace(cloud, xyz=xyz)) >= 0.96

@@ -32,7 +32,10 @@ Needs roof_growing before it (point_data 'roof_segment') and, for the height tes
   under the seeds' median curvature where that is higher: low_planar_bound) is
   neither a roof nor an annex: hedges and shrubs against houses reach the eaves and are smooth at a
   metre, rough at the point spacing. Judged only for segments of at least JUDGED_NEIGHBOURHOODS x k
-  points (in fewer every neighbourhood straddles the rim).
+  points (in fewer every neighbourhood straddles the rim). The share scales with the survey's own
+  roofs: where the kept segments over narrow_max_height have fewer planar points than
+  low_planar_reference (noisy sensors: every roof loses planar points), low_min_planar falls in
+  proportion.
 - annexes (annex_reach > 0): a segment dropped only by the area or width test (it passes the
   height test) is kept when it holds at least density * annex_min_area points, at most
   annex_max_vegetation of them vegetation-coloured, and it lies along a kept roof: a point within
@@ -133,6 +136,12 @@ class RoofFilterOptions(StageOptions):
                                   "curvature where higher, as on dense or noisy surveys): hedges and shrubs "
                                   "beside houses are as high as low roofs, their tops smooth at a metre "
                                   "but rough at the point spacing; 0 = off")
+    low_planar_reference: float = Field(0.55, gt=0, le=1, description="the planar share of the survey's "
+                                        "kept roofs over narrow_max_height (point-weighted) at which "
+                                        "low_min_planar holds; a survey whose roofs are less planar (noisy "
+                                        "sensors: all roofs lose planar points together) scales low_min_planar "
+                                        "down in proportion (the IGN tiles merged: 0.55; every real file at "
+                                        "hand 0.45-0.91)")
     edge_cut: bool = Field(True, description="a segment cut by the edge of the data (tile or "
                            "survey boundary) is as wide as its cut is long: its width across the "
                            "cut is not observed")
@@ -597,18 +606,25 @@ class RoofFilter(Stage):
             narrow = width < o.min_roof_width
             keep_width = ~(narrow & (median_height < o.narrow_max_height))
         judged = sizes >= JUDGED_NEIGHBOURHOODS * (int(np.shape(knn)[1]) if knn is not None else 0)
-        smooth = np.ones(count, bool)
-        planar_max = None
-        if count and o.low_min_planar > 0 and height is not None and "curvature" in ctx.point_data:
-            planar_max = low_planar_bound(ctx)
-            smooth = ~(judged & (median_height < o.narrow_max_height) &
-                       (planar_shares(segment, ctx.point_data["curvature"], count, planar_max) < o.low_min_planar))
         opaque = np.ones(count, bool)
         later = cloud.later_returns() if o.see_through_depth > 0 and count else None
         if later is not None:
             # points per segment, not cells: both counts scale with the density alike
             interior, seen = seen_through(segment, cloud.xyz, count, cell, o.see_through_depth, later)
             opaque = ~((seen >= o.see_through_min_points) & (seen >= o.max_see_through * interior))
+        smooth = np.ones(count, bool)
+        planar_max = roof_planar_share = None
+        if count and o.low_min_planar > 0 and height is not None and "curvature" in ctx.point_data:
+            planar_max = low_planar_bound(ctx)
+            shares = planar_shares(segment, ctx.point_data["curvature"], count, planar_max)
+            # the survey's own roofs: kept segments over narrow_max_height (this test does not judge them)
+            high = keep_area & keep_height & keep_width & opaque & judged & (median_height >= o.narrow_max_height)
+            if high.any():
+                roof_planar_share = float((shares[high] * sizes[high]).sum() / sizes[high].sum())
+                low_min_planar = o.low_min_planar * min(1.0, roof_planar_share / o.low_planar_reference)
+            else:
+                roof_planar_share, low_min_planar = None, o.low_min_planar
+            smooth = ~(judged & (median_height < o.narrow_max_height) & (shares < low_min_planar))
         kept = keep_area & keep_height & keep_width & opaque & smooth
         annexes = 0
         if o.annex_reach > 0 and count and kept.any():
@@ -678,6 +694,7 @@ class RoofFilter(Stage):
                 "cut_by_data_edge": cut_segments,
                 "annexes_kept": annexes, "attached_points": attached,
                 "low_planar_max": None if planar_max is None else round(planar_max, 5),
+                "roof_planar_share": None if planar_max is None or roof_planar_share is None else round(roof_planar_share, 4),
                 "footprint_cell_m": round(cell, 4), "wall_reach_m": round(wall_reach, 4),
                 "segments_kept": int(kept_count), "roof_points": int(roof.sum())}
         if edges is not None:
