@@ -694,7 +694,7 @@ class RoofFilter(Stage):
                 "cut_by_data_edge": cut_segments,
                 "annexes_kept": annexes, "attached_points": attached,
                 "low_planar_max": None if planar_max is None else round(planar_max, 5),
-                "roof_planar_share": None if planar_max is None or roof_planar_share is None else round(roof_planar_share, 4),
+                "roof_planar_share": None if roof_planar_share is None else round(roof_planar_share, 4),
                 "footprint_cell_m": round(cell, 4), "wall_reach_m": round(wall_reach, 4),
                 "segments_kept": int(kept_count), "roof_points": int(roof.sum())}
         if edges is not None:
