@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from roadx_ti.cloud import Cloud
+from roadx_ti.sorted_keys import find
 
 log = logging.getLogger("roadx_ti")
 
@@ -122,18 +123,13 @@ def terrain_grade(xyz: np.ndarray, cell: float = TERRAIN_CELL) -> float | None:
     low = np.full(len(cells), np.inf)
     np.minimum.at(low, inverse.ravel(), np.asarray(xyz[:, 2], np.float64))
 
-    def at(offset):
-        """(index, present) of the cell ``offset`` keys away from each cell."""
-        where = np.searchsorted(cells, cells + offset)
-        clipped = np.minimum(where, len(cells) - 1)
-        return clipped, (where < len(cells)) & (cells[clipped] == cells + offset)
     ground = low.copy()
     for dx in range(-TERRAIN_REACH, TERRAIN_REACH + 1):
         for dy in range(-TERRAIN_REACH, TERRAIN_REACH + 1):
-            index, present = at(dx * width + dy)
+            index, present = find(cells, cells + dx * width + dy)
             ground = np.where(present, np.minimum(ground, low[index]), ground)
-    east, has_east = at(width)
-    north, has_north = at(1)
+    east, has_east = find(cells, cells + width)
+    north, has_north = find(cells, cells + 1)
     both = has_east & has_north
     if both.sum() < MIN_TERRAIN_PAIRS:
         return None

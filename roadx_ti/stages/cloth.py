@@ -15,10 +15,9 @@ from __future__ import annotations
 
 import inspect
 from dataclasses import dataclass
-
-import numpy as np
 from typing import Literal
 
+import numpy as np
 from pydantic import Field
 
 from roadx_ti import isolation, memory

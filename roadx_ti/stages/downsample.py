@@ -74,12 +74,11 @@ class UniformDownsample(Stage):
         if ratio is not None and ratio < 1.0:
             # later stages' spacings follow the kept density (stages.base.survey_spacing)
             ctx.facts[SAMPLED_SHARE] = float(ctx.facts.get(SAMPLED_SHARE) or 1.0) * ratio
-        every = o.target_points is None and ratio == 1.0
-        if every and o.pattern == "hashed":
-            # every point kept (a survey not denser than the target): nothing to hash
+        if o.target_points is None and ratio == 1.0:
+            # every point kept (a survey not denser than the target): each pattern keeps them all
             return StageResult(keep=np.ones(cloud.n, bool), mode="subsample",
                                info={"target_points": int(cloud.n), "ratio": 1.0})
-        isolated = None if every or not cloud.n else isolation.isolated_in(cloud.xyz, isolation.SMALL_PART, ctx)
+        isolated = None if not cloud.n else isolation.isolated_in(cloud.xyz, isolation.SMALL_PART, ctx)
         rest = None if isolated is None else np.flatnonzero(~isolated)
         n = cloud.n if rest is None else len(rest)
         # a ratio > 0 keeps at least one point: rounding must not leave a tiny cloud unprocessed
