@@ -14,13 +14,13 @@ run with one line naming its extent and cloth_resolution.
 from __future__ import annotations
 
 import inspect
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 from pydantic import Field
 
-from roadx_ti import isolation, memory
+from roadx_ti import isolation, memory, plateaus
 from roadx_ti.cloud import Cloud
 from roadx_ti.errors import DataError
 from roadx_ti.kernels.cloth import LATTICE_PERIOD, ClothResult, LatticeTooLarge, csf
@@ -66,6 +66,13 @@ class ClothOptions(StageOptions):
                                  "cloth (false: the package's layout from the bounding box)")
 
 
+class ClothGroundOptions(ClothOptions):
+    raised_plateaus: bool = Field(True, description="put back under the terrain the flat roofs the "
+                                  "cloth sank into (ground cut off from the ground around it by a step "
+                                  "down of plateau_step or more on nearly all its outline: roadx_ti.plateaus)")
+    plateau_step: float = Field(2.0, gt=0, description="least wall height of a raised plateau (m)")
+
+
 class ClothSmoothOptions(ClothOptions):
     # METHODS.md R5 values (paper Table 1): C_r = 2, C_n = 500, C_t = 0.3
     cloth_resolution: float = Field(2.0, gt=0, description="C_r: particle spacing of the cloth (m); paper 2")
@@ -100,6 +107,7 @@ class Cloths:
     largest: ClothResult | None  # None when every point is isolated
     parts: list                  # (point indices, ClothResult) per simulated part
     isolated: int = 0
+    plateaus: list = field(default_factory=list)   # roadx_ti.plateaus.Plateau lowered
 
     def height_above(self, xyz) -> np.ndarray:
         if self.largest is not None and len(self.parts) == 1 and len(self.parts[0][0]) == len(xyz):
@@ -151,14 +159,31 @@ def _run_cloth(options: ClothOptions, cloud: Cloud, ctx: StageContext, stage: st
     split = isolation.parts(xyz[kept, :2] if isolated is not None else xyz[:, :2])
     ground = np.zeros(cloud.n, bool)
     results = []
+    raised = []
     for members in split.members():
         index = kept[members]
         whole = len(index) == cloud.n
-        result = _simulate(options, xyz if whole else xyz[index], cloud.origin, ctx, stage)
+        part = xyz if whole else xyz[index]
+        result = _simulate(options, part, cloud.origin, ctx, stage)
+        if getattr(options, "raised_plateaus", False):
+            raised += _lower_plateaus(result, part, options)
         ground[index] = result.ground
         results.append((index, result))
     largest = max(results, key=lambda r: len(r[0]))[1] if results else None
-    return Cloths(ground, largest, results, 0 if isolated is None else int(isolated.sum()))
+    return Cloths(ground, largest, results, 0 if isolated is None else int(isolated.sum()), raised)
+
+
+def _lower_plateaus(result: ClothResult, xyz: np.ndarray, options: ClothOptions) -> list:
+    """Lower the cloth over raised plateaus (flat roofs it sank into) to the terrain around
+    them, and classify the points against the lowered cloth (result changed in place); returns
+    the plateaus found."""
+    supported = plateaus.supported_cells(result, xyz, result.ground)
+    reach = max(CLOTH_SPAN, CLOTH_STIFFNESS_PARTICLES * float(options.cloth_resolution))
+    patched, found = plateaus.find(result.cloth_z, supported, result.resolution, options.plateau_step, reach)
+    if patched is not None:
+        result.cloth_z = patched
+        result.ground = np.abs(result.height_above(xyz)) < options.class_threshold
+    return found
 
 
 def _export_ground(result: Cloths, cloud: Cloud, ctx: StageContext) -> None:
@@ -188,6 +213,10 @@ def _info(result: Cloths, options: ClothOptions, ctx: StageContext) -> dict:
         info["parts"] = len(result.parts)
     if result.isolated:
         info["isolated"] = result.isolated
+    if getattr(options, "raised_plateaus", False):
+        info["raised_plateaus"] = len(result.plateaus)
+        if result.plateaus:
+            info["raised_plateau_cells"] = int(sum(p.cells for p in result.plateaus))
     return info
 
 
@@ -207,7 +236,7 @@ class ClothSmooth(_ClothStage):
 class ClothGround(_ClothStage):
     """P1: ground leaves the working set as class 2; the rest keeps its height above the cloth."""
     name = "cloth_ground"
-    Options = ClothOptions
+    Options = ClothGroundOptions
     provides = (GROUND_SURFACE, "height_above_ground")
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
