@@ -925,6 +925,29 @@ NOTES = {
         "the scene, a 6 m cutting, a hill and a sunken courtyard. No plateau is found on any real file or "
         "synthetic scene of the report (their labels unchanged). Left: in tiled runs a hall cut by the "
         "window's edge is judged on what the window holds (buffers 30 m).",
+        "Steep terrain (2026-12-06, issue 16's held-out terrain): at f41bb5a a town on a 50 % grade scored "
+        "0.6196 / 0.5995 / 0.7456 (300 k seeds 0-2): even the steep-slope cloth (rigidness 1, slope_smooth) "
+        "stayed off the hillside, whose planar parts passed for roof. Two changes. (1) terrain_grade leaves "
+        "out each 10 m cell's lowest 1 % (low noise): the synthetic scenes' 80-130 class 7 points, each "
+        "spread over 5 x 5 cells by the lowering, made a 40 % ridge read 0.11-0.24 and a 30 % grade "
+        "0.18-0.35 (now 0.34-0.38 and 0.30-0.36). (2) cloth_ground `detrend: auto` "
+        "(roadx_ti.terrain_trend): where terrain_grade exceeds steep_grade (15 %) the cloth runs on heights "
+        "above the terrain's trend (10 m cell lows, empty cells filled from the nearest, grey opening over "
+        "5 x 5 cells, Gaussian of 1.5 cells, the lattice padded by point reflection so a plane stays a "
+        "plane to the edges; a second pass on the heights above the first takes out the cells' downhill "
+        "bias) and the trend is added back to the cloth. Flat scenes and every real file read under 15 % "
+        "and are unchanged. After, 300 k seeds 0-2: 30 % 0.9735 / 0.9584 / 0.9680 -> 0.9749 / 0.9592 / "
+        "0.9685, 50 % 0.9742 / 0.9594 / 0.9663; other terrain shapes, seeds 0 / 1 before -> after: a valley "
+        "of 50 % sides 0.1339 / 0.0988 -> 0.9742 / 0.9600, a 40 % ridge 0.6909 / 0.7420 -> 0.9659 / 0.9365 "
+        "(the opening cuts the crest), waves of 15 m amplitude, 190 m long, 0.9106 / 0.7288 -> 0.9746 / 0.9596, a "
+        "bowl (up to about 80 % at its corners) 0.3987 / 0.1711 -> 0.9742 / 0.9582, 45 % diagonally 0.9640 "
+        "/ 0.9507 -> 0.9752 / 0.9588. Held out (not looked at while building it): seeds 3-6 at 50 % 0.9593 "
+        "/ 0.9768 / 0.9669 / 0.9678 and at 60 % 0.9615 / 0.9778 / 0.9678 / 0.9685; seeds 2 / 3 valley "
+        "0.9637 / 0.9574, ridge 0.9627 / 0.9507, waves 0.9642 / 0.9573, bowl 0.9615 / 0.9430, diagonal "
+        "0.9696 / 0.9592. configs/ground.yaml (class 2 kappa, seeds 0-2): 0.57-0.69 at 30, 40 and 50 % with "
+        "the trend, 0.58-0.68 / 0.55-0.65 / 0.46-0.58 without; counting roads and low vegetation as ground "
+        "too the trend costs at 30 % (0.979-0.988 -> 0.950-0.969: the level cloth misses what it misses on "
+        "flat ground, 0.842-0.968 there) and gains at 50 % (0.666-0.856 -> 0.949-0.969).",
     ],
 }
 
@@ -1021,10 +1044,11 @@ def datasets(task: str, sizes=ROOF_SIZES, seeds=ROOF_SEEDS):
                 rows.append((f"synthetic als-roof {_size_name(points)} seed {seed}",
                              lambda n=points, s=seed: synthetic.generate("als-roof", n, s), [6], "roof_als.yaml"))
         # hilly towns: the matrix's 300 k scenes on a hillside (the whole scene tilted)
-        for seed in TILTED_ROOF_SEEDS:
-            rows.append((f"synthetic als-roof 300 k on a {100 * TILT_GRADE:g} % grade seed {seed}",
-                         lambda s=seed: tilted(synthetic.generate("als-roof", 300_000, s), TILT_GRADE),
-                         [6], "roof_als.yaml"))
+        for grade in TILT_GRADES:
+            for seed in TILTED_ROOF_SEEDS:
+                rows.append((f"synthetic als-roof 300 k on a {100 * grade:g} % grade seed {seed}",
+                             lambda s=seed, g=grade: tilted(synthetic.generate("als-roof", 300_000, s), g),
+                             [6], "roof_als.yaml"))
         # denser surveys than the matrix's 15 points/m2 (one block of 100 m, the same layout at each)
         for points, per_m2 in DENSE_ROOF_SCENES:
             for seed in DENSE_ROOF_SEEDS:
@@ -1034,8 +1058,8 @@ def datasets(task: str, sizes=ROOF_SIZES, seeds=ROOF_SEEDS):
     return rows
 
 
-# grade (rise over run, along x) and seeds of the tilted synthetic roof rows
-TILT_GRADE = 0.3
+# grades (rise over run, along x) and seeds of the tilted synthetic roof rows
+TILT_GRADES = (0.3, 0.5)
 TILTED_ROOF_SEEDS = (0, 1, 2)
 
 

@@ -56,17 +56,18 @@ def test_a_copc_file_streams_like_its_laz(tmp_path):
 
 
 def test_terrain_grade_reads_the_hillside_not_the_buildings():
-    """terrain_grade (the median grade of the lowest points of 10 m cells, lowered to their 5 x 5
-    cells' lowest): a flat suburb reads near 0 though its houses fill cells, the same suburb
-    tilted reads the tilt's order (the 5 x 5 window's edges and the terrain's own waves make it
-    low by up to a third); far strays do not size a grid; a handful of points gives none."""
+    """terrain_grade (the median grade of the lowest points of 10 m cells, bar the lowest 1 %,
+    lowered to their 5 x 5 cells' lowest): a flat suburb reads near 0 though its houses fill
+    cells, the same suburb tilted reads the tilt (its 82 low-noise points, spread over 5 x 5
+    cells by the lowering, made it read 0.18-0.35 at 30 % before the 1 % was left out); far
+    strays do not size a grid; a handful of points gives none."""
     from roadx_ti.accuracy import tilted
     from roadx_ti.estimates import terrain_grade
 
     scene = synthetic.generate("als-roof", 200_000, seed=3)
     assert terrain_grade(scene.xyz) < 0.05
-    assert 0.18 < terrain_grade(tilted(scene, 0.3).xyz) < 0.35
-    assert 0.28 < terrain_grade(tilted(scene, 0.4).xyz) < 0.45
+    assert 0.27 < terrain_grade(tilted(scene, 0.3).xyz) < 0.33
+    assert 0.36 < terrain_grade(tilted(scene, 0.4).xyz) < 0.44
     rng = np.random.default_rng(0)
     plane = np.column_stack([rng.random((50_000, 2)) * 200.0, np.zeros(50_000)]).astype(np.float32)
     plane[:, 2] = 0.25 * plane[:, 0]

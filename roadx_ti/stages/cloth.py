@@ -20,9 +20,10 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from roadx_ti import isolation, memory, plateaus
+from roadx_ti import isolation, memory, plateaus, terrain_trend
 from roadx_ti.cloud import Cloud
 from roadx_ti.errors import DataError
+from roadx_ti.estimates import TERRAIN_CELL, TERRAIN_REACH
 from roadx_ti.kernels.cloth import LATTICE_PERIOD, ClothResult, LatticeTooLarge, csf
 from roadx_ti.stages.base import (CLASS_GROUND, GROUND_SURFACE, SURVEY_Z_MIN, GroundSurface, Stage, StageContext,
                                   StageOptions, StageResult, estimate)
@@ -36,6 +37,10 @@ BYTES_PER_PARTICLE = 64  # the simulation's per-particle arrays (kernels/cloth.p
 # window's edge loses the terrain around it that holds the cloth up
 CLOTH_SPAN = 30.0
 CLOTH_STIFFNESS_PARTICLES = 15   # the cloth's stiffness carries its shape this many particles
+# the terrain trend under steep surveys (roadx_ti.terrain_trend): the terrain_grade estimate's cells
+# and reach (buildings and crowns up to 4 cells across stand above it), cell minima smoothed over
+# about 1.5 cells
+TREND_SIGMA_CELLS = 1.5
 
 
 # the `cloth-simulation-filter` package's defaults, defined once: the kernel's signature
@@ -67,6 +72,10 @@ class ClothOptions(StageOptions):
 
 
 class ClothGroundOptions(ClothOptions):
+    detrend: Literal["auto"] | bool = Field("auto", description="run the cloth on heights above the "
+                                            "terrain's smooth trend (roadx_ti.terrain_trend), so that a "
+                                            "hillside is level to it: true, false, or 'auto' where the "
+                                            "survey's terrain_grade exceeds steep_grade")
     raised_plateaus: bool = Field(True, description="put back under the terrain the flat roofs the "
                                   "cloth sank into (ground cut off from the ground around it by a step "
                                   "down of plateau_step or more on nearly all its outline: roadx_ti.plateaus)")
@@ -133,15 +142,31 @@ def rigidness_for(options: ClothOptions, ctx: StageContext) -> int:
     return 1 if grade is not None and float(grade) > options.steep_grade else 3
 
 
+def detrended(options: ClothOptions, ctx: StageContext) -> bool:
+    """Whether the cloth runs on heights above the terrain's trend (option detrend)."""
+    mode = getattr(options, "detrend", False)
+    if mode != "auto":
+        return bool(mode)
+    grade = estimate(ctx, "terrain_grade")
+    return grade is not None and float(grade) > options.steep_grade
+
+
 def _simulate(options: ClothOptions, xyz: np.ndarray, origin, ctx: StageContext, stage: str) -> ClothResult:
     lattice = world_lattice(origin, options.cloth_resolution) if options.align_to_world else None
+    trend = None
+    points = xyz
+    if detrended(options, ctx):
+        trend = terrain_trend.fit(xyz, TERRAIN_CELL, 2 * TERRAIN_REACH + 1, TREND_SIGMA_CELLS, origin[:2])
+        points = xyz.copy()
+        points[:, 2] -= trend.at(xyz[:, :2]).astype(points.dtype)
     try:
-        return csf(xyz, cloth_resolution=options.cloth_resolution,
-                   rigidness=rigidness_for(options, ctx), time_step=options.time_step,
-                   iterations=options.iterations, class_threshold=options.class_threshold,
-                   slope_smooth=options.slope_smooth, lattice_origin=lattice,
-                   start_z=start_z(xyz, ctx) if options.align_to_world else None,
-                   max_particles=memory.dense_limit(len(xyz), BYTES_PER_PARTICLE))
+        result = csf(points, cloth_resolution=options.cloth_resolution,
+                     rigidness=rigidness_for(options, ctx), time_step=options.time_step,
+                     iterations=options.iterations, class_threshold=options.class_threshold,
+                     slope_smooth=options.slope_smooth, lattice_origin=lattice,
+                     # a survey's lowest point says nothing of heights above the trend
+                     start_z=start_z(xyz, ctx) if options.align_to_world and trend is None else None,
+                     max_particles=memory.dense_limit(len(xyz), BYTES_PER_PARTICLE))
     except LatticeTooLarge as exc:
         extent = xyz[:, :2].max(axis=0) - xyz[:, :2].min(axis=0)
         raise DataError(
@@ -150,6 +175,16 @@ def _simulate(options: ClothOptions, xyz: np.ndarray, origin, ctx: StageContext,
             f"({memory.format_size(exc.particles * BYTES_PER_PARTICLE)}) for {len(xyz):,} points, more than "
             f"the {exc.limit:,} allowed: raise stages.{stage}.cloth_resolution or run in tiles "
             "(--tile-size)") from None
+    if trend is not None:
+        # the cloth back on the terrain: its particles raised by the trend under them, and the
+        # points classified against it
+        rows, cols = result.cloth_z.shape
+        px = result.x0 + np.arange(cols) * result.resolution
+        py = result.y0 + np.arange(rows) * result.resolution
+        grid = np.column_stack([np.tile(px, rows), np.repeat(py, cols)])
+        result.cloth_z = (result.cloth_z + trend.at(grid).reshape(rows, cols)).astype(np.float32)
+        result.ground = np.abs(result.height_above(xyz)) < options.class_threshold
+    return result
 
 
 def _run_cloth(options: ClothOptions, cloud: Cloud, ctx: StageContext, stage: str) -> Cloths:
@@ -207,8 +242,10 @@ def _info(result: Cloths, options: ClothOptions, ctx: StageContext) -> dict:
     shape = list(result.largest.cloth_z.shape) if result.largest is not None else [0, 0]
     info = {"ground": int(result.ground.sum()), "cloth_shape": shape,
             "iterations": result.iterations, "rigidness": rigidness_for(options, ctx)}
-    if options.rigidness == "auto":
+    if options.rigidness == "auto" or getattr(options, "detrend", False) == "auto":
         info["terrain_grade"] = estimate(ctx, "terrain_grade")
+    if hasattr(options, "detrend"):
+        info["detrended"] = detrended(options, ctx)
     if len(result.parts) > 1:
         info["parts"] = len(result.parts)
     if result.isolated:
