@@ -15,7 +15,7 @@ import warnings
 from pathlib import Path
 
 
-from roadx_ti import __version__, jsonio
+from roadx_ti import __version__, jsonio, units
 from roadx_ti.config import parse_point_count
 from roadx_ti.errors import DataError  # a data mistake: exit 1
 
@@ -303,6 +303,9 @@ def cmd_run(args) -> int:
     written.update({name: "float32" for stage, _ in stage_specs for name in stage_class(stage).writes})
     io.check_writable(out, cloud, written)
 
+    factors = _survey_units(cloud)
+    work = units.in_metres(cloud, factors)
+
     arch = backend.init(cfg.backend, threads=cfg.threads)
     log.info("Taichi backend: %s", arch)
     truth = None
@@ -314,9 +317,13 @@ def cmd_run(args) -> int:
     ctx = StageContext(seed=cfg.seed, log=log)
     stages = pipelines.build_stages(stage_specs)
     progress = _progress_bar(len(stages), args.quiet)
-    result = pipelines.run(cloud, stages, ctx=ctx, truth=truth, progress=progress)
+    result = pipelines.run(work, stages, ctx=ctx, truth=truth, progress=progress)
     if progress is not None:
         progress.close()
+    del work
+    for name in units.LENGTH_DIMS:
+        if name in result.extra_dims and not factors.metric:
+            result.extra_dims[name] = (result.extra_dims[name] / factors.vertical).astype("float32")
 
     target = config.PIPELINE_TARGET[cfg.pipeline]
     subset = None if cfg.output.points == "all" else result.processed
@@ -336,6 +343,10 @@ def cmd_run(args) -> int:
         "estimates": result.estimates,
         "stages": result.stages,
     }
+    if not factors.metric:
+        summary["units"] = {"input": factors.name, "metres_per_unit": {"horizontal": factors.horizontal,
+                                                                        "vertical": factors.vertical},
+                            "note": "stages ran in metres: estimates and stage figures are metres"}
     if truth is not None:
         from roadx_ti.metrics import scores
         summary["truth_classes"] = cfg.truth_classes
@@ -353,7 +364,7 @@ def cmd_run(args) -> int:
             if len(surface.parts) > 1:
                 log.warning("output.dtm: the cloud is %d parts more than 100 m apart; the DTM covers the "
                             "largest (a raster over all would be sized by the gaps)", len(surface.parts))
-            summary["dtm"] = _write_dtm(dtm_path, surface, cloud)
+            summary["dtm"] = _write_dtm(dtm_path, units.surface_in_units(surface, factors), cloud)
     from roadx_ti import report
     jsonio.write(paths["summary"], summary)
     with io.atomic_output(paths["config"]) as tmp:
@@ -365,6 +376,24 @@ def cmd_run(args) -> int:
     log.info("wrote %s (+ %s, %s%s) in %.2f s total", out, paths["summary"].name, paths["config"].name,
              f", {paths['png'].name}" if cfg.output.report_png else "", time.perf_counter() - t0)
     return EXIT_OK
+
+
+def _survey_units(cloud):
+    """The metres per unit of the cloud's CRS (roadx_ti.units), logged when not metres; a cloud in
+    longitude / latitude degrees stops the run with one line."""
+    from roadx_ti.io import crs as io_crs
+
+    crs = io_crs.of_cloud(cloud)
+    if units.is_degrees(crs, cloud):
+        raise DataError(f"{cloud.source}: coordinates are longitude / latitude degrees ({crs.to_string()}); "
+                        "the stages' lengths are metres: reproject it to a projected CRS first, e.g. pdal "
+                        "translate IN OUT reprojection --filters.reprojection.out_srs=EPSG:<UTM zone>")
+    factors = units.metre_factors(crs)
+    if not factors.metric:
+        log.info("%s counts in %s (%.10g m; heights %.10g m per unit): the stages run in metres, the "
+                 "output keeps the file's coordinates", cloud.source, factors.name, factors.horizontal,
+                 factors.vertical)
+    return factors
 
 
 def _streams_records(source, out: Path) -> bool:
@@ -427,6 +456,7 @@ def _run_tiled(cfg, out: Path, args) -> int:
         raise config.ConfigError("config error: input: tiled runs read files; give input.paths or --input")
     from roadx_ti.tiling.run import dtm_output
     inputs = [f.path for f in tiling.catalog(cfg.input.paths, warn=False)]
+    _check_tiled_units(inputs)
     dtm_path = dtm_output(cfg, out, cfg.output.mode)
     if dtm_path is not None and (cfg.output.mode != "per-file" or isinstance(cfg.output.dtm, str)):
         # (per-file's own dtm.tif goes into the output folder, made below)
@@ -462,6 +492,21 @@ def _run_tiled(cfg, out: Path, args) -> int:
     log.info("tiled run: %d tiles, %d points written", len(summary.get("tiles", [])),
              summary.get("points_written", 0))
     return EXIT_OK
+
+
+def _check_tiled_units(inputs) -> None:
+    """Tiled runs plan windows and buffers in the files' own units: a catalog whose CRS is not in
+    metres stops with one line (a whole-file run converts; units.py)."""
+    from roadx_ti.io import crs as io_crs
+
+    for path in inputs:
+        if Path(path).suffix.lower() not in (".las", ".laz"):
+            continue
+        factors = units.metre_factors(io_crs.of_path(path))
+        if not factors.metric:
+            raise UsageError(f"{path}: counts in {factors.name}; tiled runs work in the files' units and "
+                             "need metres: run the file whole (without --tile-size / tiling.auto) or "
+                             "reproject the catalog to a metric CRS")
 
 
 def _make_parent(out: Path) -> None:

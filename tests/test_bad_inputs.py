@@ -762,6 +762,26 @@ def case_laz_points_offset_one_byte_off(d):
     return _tiny(d, src, message="chunk table offset")
 
 
+def case_longitude_latitude_degrees(d):
+    """A file in EPSG:4326 whose coordinates are degrees (every length of the configs is metres: a
+    1 m cell would be 100 km wide): exit 1 naming the degrees and a reprojection, before any work."""
+    from rasterio.crs import CRS
+    xyz = bumpy_ground(800)
+    xyz[:, 0] = 2.35 + (xyz[:, 0] - xyz[:, 0].min()) * 1e-5
+    xyz[:, 1] = 48.85 + (xyz[:, 1] - xyz[:, 1].min()) * 1e-5
+    src = write_las(d / "in" / "lonlat.las", xyz, scale=1e-7, crs_wkt=CRS.from_epsg(4326).to_wkt())
+    return _tiny(d, src, message="longitude / latitude degrees")
+
+
+def case_feet_survey_in_tiles(d):
+    """A survey in US survey feet run in tiles (windows and buffers would be planned in feet):
+    exit 2 saying tiled runs need metres (a whole-file run converts)."""
+    from rasterio.crs import CRS
+    src = write_las(d / "in" / "feet.las", bumpy_ground(800) / 0.3048006, scale=0.001,
+                    crs_wkt=CRS.from_epsg(2263).to_wkt())
+    return _tiny(d, src, code=2, extra=["--tile-size", "30"], message="tiled runs work in the files' units")
+
+
 CASES = {name[len("case_"):]: fn for name, fn in sorted(globals().items()) if name.startswith("case_")}
 
 

@@ -1,0 +1,93 @@
+"""Length units of a survey: every length of the configs is in metres, so a survey whose CRS
+counts in feet (US State Plane surveys: EPSG:2263 and the like, often with NAVD88 heights in
+feet) runs in metres and is written back in its own units.
+
+``metre_factors(crs)`` reads the CRS (a rasterio CRS) for the metres per unit of its horizontal
+axes and of its heights (the vertical CRS's unit in a compound CRS; without one, heights count in
+the horizontal unit, as LAS files in feet do). ``in_metres(cloud, factors)`` is the cloud the
+stages see (coordinates and origin scaled; the records, and so the file written, are untouched);
+``surface_in_units`` takes a ground surface back to the file's units for the DTM export.
+A geographic CRS (degrees) with coordinates that are degrees has no metric run: InputError.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+_UNIT = re.compile(r'(?:LENGTHUNIT|UNIT)\["([^"]+)",\s*([0-9.eE+-]+)')
+_VERTICAL = re.compile(r"VERT_CS\[|VERTCRS\[|VERTICALCRS\[")
+
+
+@dataclass(frozen=True)
+class Factors:
+    horizontal: float     # metres per unit of x and y
+    vertical: float       # metres per unit of z
+    name: str             # the horizontal unit's name, for messages
+
+    @property
+    def metric(self) -> bool:
+        return self.horizontal == 1.0 and self.vertical == 1.0
+
+    @property
+    def xyz(self) -> np.ndarray:
+        return np.array([self.horizontal, self.horizontal, self.vertical])
+
+
+METRES = Factors(1.0, 1.0, "metre")
+# per-point outputs that are lengths (Stage.writes): written back in the file's height unit
+LENGTH_DIMS = ("height_above_ground",)
+
+
+def metre_factors(crs) -> Factors:
+    """Factors of ``crs`` (a rasterio CRS or None; None, geographic or unreadable: METRES, the
+    caller checks degrees with ``check_projected``)."""
+    if crs is None or not crs.is_projected:
+        return METRES
+    name, horizontal = crs.linear_units_factor
+    horizontal = float(horizontal)
+    vertical = horizontal
+    wkt = crs.to_wkt()
+    found = _VERTICAL.search(wkt)
+    if found:
+        unit = _UNIT.search(wkt, found.end())
+        if unit:
+            vertical = float(unit.group(2))
+    # units within a part per million of the metre are the metre (a WKT's rounding)
+    horizontal = 1.0 if abs(horizontal - 1.0) < 1e-6 else horizontal
+    vertical = 1.0 if abs(vertical - 1.0) < 1e-6 else vertical
+    return Factors(horizontal, vertical, str(name))
+
+
+def is_degrees(crs, cloud) -> bool:
+    """True when ``crs`` is geographic and the cloud's coordinates are longitudes / latitudes."""
+    if crs is None or not crs.is_geographic or cloud.n == 0:
+        return False
+    world = cloud.xyz[:, :2].astype(np.float64) + cloud.origin[:2]
+    return bool(np.all(np.abs(world[:, 0]) <= 360.0) and np.all(np.abs(world[:, 1]) <= 90.0))
+
+
+def in_metres(cloud, factors: Factors):
+    """``cloud`` with coordinates and origin in metres (a new Cloud sharing every other array;
+    the same cloud when the factors are metres)."""
+    if factors.metric:
+        return cloud
+    scale = factors.xyz
+    return replace(cloud, xyz=(cloud.xyz.astype(np.float64) * scale).astype(np.float32),
+                   origin=cloud.origin * scale)
+
+
+def surface_in_units(surface, factors: Factors):
+    """A GroundSurface (stages.base) made in metres, back in the file's units (grids scaled)."""
+    if factors.metric:
+        return surface
+    h, v = factors.horizontal, factors.vertical
+
+    def grid(g):
+        return replace(g, cloth_z=(g.cloth_z.astype(np.float64) / v).astype(np.float32), x0=g.x0 / h,
+                       y0=g.y0 / h, resolution=g.resolution / h)
+
+    parts = [grid(g) for g in surface.parts]
+    largest = next((p for p, g in zip(parts, surface.parts) if g is surface.largest), grid(surface.largest))
+    return replace(surface, largest=largest, origin=surface.origin / factors.xyz, parts=parts)
