@@ -431,9 +431,11 @@ def at_grade_shares(segment: np.ndarray, xyz: np.ndarray, height: np.ndarray, no
     width = int(iy.max()) + 2
     plane = int(ix.max() + 2) * width
     key = segment[flat].astype(np.int64) * plane + ix * width + iy
-    cells, inverse = np.unique(key, return_inverse=True)
-    lowest = np.full(len(cells), np.inf)
-    np.minimum.at(lowest, inverse.reshape(-1), np.asarray(height, np.float64)[flat])
+    order = np.argsort(key)
+    key = key[order]
+    start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    cells = key[start]
+    lowest = np.minimum.reduceat(np.asarray(height, np.float64)[flat][order], start)
     inner = np.ones(len(cells), bool)
     for step in (width, -width, 1, -1):
         _, present = find(cells, cells + step)
