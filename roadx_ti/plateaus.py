@@ -25,6 +25,7 @@ import numpy as np
 
 OUTLINE_SHARE = 0.75   # least share of a plateau's outline that must step down to the ground around it
 MIN_CELLS = 25         # smaller components are not judged (noise, a ground point on a bin)
+EDGE_CELLS = 2         # an outline cell with no point within this many cells outside is the data's edge
 
 
 @dataclass
@@ -62,11 +63,13 @@ def _components(z: np.ndarray, supported: np.ndarray, jump: float) -> np.ndarray
 
 
 def find(cloth_z: np.ndarray, supported: np.ndarray, resolution: float, step: float,
-         reach: float) -> tuple[np.ndarray, list]:
+         reach: float, occupied: np.ndarray | None = None) -> tuple[np.ndarray, list]:
     """(patched cloth heights or None, [Plateau]): ``cloth_z`` (rows, cols) with each raised
     plateau lowered to the terrain around it; ``supported`` (rows, cols) bool, the cells holding
     a ground point; ``step`` (m) the least wall height of a plateau, ``reach`` (m) how far from
-    its outline the ground around it is looked for."""
+    its outline the ground around it is looked for; ``occupied`` (rows, cols) bool, the cells
+    holding any point (None: the supported ones): an outline cell with no occupied cell beside it
+    outside the plateau (within EDGE_CELLS) is the data's edge, no evidence either way."""
     from scipy import ndimage
 
     if not supported.any():
@@ -97,7 +100,11 @@ def find(cloth_z: np.ndarray, supported: np.ndarray, resolution: float, step: fl
             continue
         # the nearest other ground cell of every cell (the outline's view of the ground around)
         dist, (nr, nc) = ndimage.distance_transform_edt(~other, return_indices=True)
-        near = outline & (dist * resolution <= reach)
+        # beside the outline, outside the plateau: points (a wall, the cloth's ring, the ground
+        # beyond), or nothing (the survey ends there: a terrace at the edge is no plateau)
+        beside = ndimage.maximum_filter((supported if occupied is None else occupied)[window] & ~filled,
+                                        size=2 * EDGE_CELLS + 1, mode="constant", cval=False)
+        near = outline & beside & (dist * resolution <= reach)
         if near.sum() < OUTLINE_SHARE * outline.sum():
             continue
         zw = z[window]

@@ -46,9 +46,10 @@ def test_cell_lows_leave_out_the_lowest_percent():
 
 
 def test_detrend_auto_follows_the_terrain_grade():
-    auto = ClothGroundOptions(steep_grade=0.15)
+    auto = ClothGroundOptions()                 # detrend_grade 0.15
     assert not detrended(auto, StageContext(facts={ESTIMATES: {"terrain_grade": 0.05}}))
     assert detrended(auto, StageContext(facts={ESTIMATES: {"terrain_grade": 0.3}}))
+    assert not detrended(ClothGroundOptions(detrend_grade=0.35), StageContext(facts={ESTIMATES: {"terrain_grade": 0.3}}))
     assert not detrended(auto, StageContext())
     assert detrended(ClothGroundOptions(detrend=True), StageContext())
     # YAML's `off` / `on` arrive as booleans

@@ -75,7 +75,12 @@ class ClothGroundOptions(ClothOptions):
     detrend: Literal["auto"] | bool = Field("auto", description="run the cloth on heights above the "
                                             "terrain's smooth trend (roadx_ti.terrain_trend), so that a "
                                             "hillside is level to it: true, false, or 'auto' where the "
-                                            "survey's terrain_grade exceeds steep_grade")
+                                            "survey's terrain_grade exceeds detrend_grade")
+    detrend_grade: float = Field(0.15, gt=0, description="detrend 'auto': terrain steeper than this median "
+                                 "grade (unitless). The trend is opened over 50 m: a flat roof wider than "
+                                 "that raises it (a 250 x 150 m hall on a 20 % grade: kappa 0.9993 without "
+                                 "the trend, 0.4688 with it), while valleys and bowls whose median grade is "
+                                 "15-30 % need it (0.10-0.92 without, 0.94-0.97 with: ACCURACY.md's notes)")
     raised_plateaus: bool = Field(True, description="put back under the terrain the flat roofs the "
                                   "cloth sank into (ground cut off from the ground around it by a step "
                                   "down of plateau_step or more on nearly all its outline: roadx_ti.plateaus)")
@@ -148,7 +153,7 @@ def detrended(options: ClothOptions, ctx: StageContext) -> bool:
     if mode != "auto":
         return bool(mode)
     grade = estimate(ctx, "terrain_grade")
-    return grade is not None and float(grade) > options.steep_grade
+    return grade is not None and float(grade) > options.detrend_grade
 
 
 def _simulate(options: ClothOptions, xyz: np.ndarray, origin, ctx: StageContext, stage: str) -> ClothResult:
@@ -213,8 +218,10 @@ def _lower_plateaus(result: ClothResult, xyz: np.ndarray, options: ClothOptions)
     them, and classify the points against the lowered cloth (result changed in place); returns
     the plateaus found."""
     supported = plateaus.supported_cells(result, xyz, result.ground)
+    occupied = plateaus.supported_cells(result, xyz, np.ones(len(xyz), bool))
     reach = max(CLOTH_SPAN, CLOTH_STIFFNESS_PARTICLES * float(options.cloth_resolution))
-    patched, found = plateaus.find(result.cloth_z, supported, result.resolution, options.plateau_step, reach)
+    patched, found = plateaus.find(result.cloth_z, supported, result.resolution, options.plateau_step, reach,
+                                   occupied)
     if patched is not None:
         result.cloth_z = patched
         result.ground = np.abs(result.height_above(xyz)) < options.class_threshold
