@@ -136,6 +136,26 @@ def _curvature(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.types.ndarra
         curvature[i] = _curvature_of(ti.max(w, 0.0))
 
 
+@ti.kernel
+def _plane_heights(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                   min_normal_z: ti.f32, out: ti.types.ndarray(dtype=ti.f32, ndim=1)):
+    for i in range(xyz.shape[0]):
+        cov, _span, _far2 = _neighbourhood_covariance(xyz, nbr, i)
+        w, v = sym_eigen3(cov)
+        nrm = ti.math.vec3(v[0, 0], v[1, 0], v[2, 0]).normalized()
+        p = ti.math.vec3(xyz[i, 0], xyz[i, 1], xyz[i, 2])
+        total = ti.math.vec3(0.0)
+        for r in range(nbr.shape[1]):
+            j = nbr[i, r]
+            total += ti.math.vec3(xyz[j, 0], xyz[j, 1], xyz[j, 2]) - p
+        centre = total / ti.cast(nbr.shape[1] + 1, ti.f32)
+        z = xyz[i, 2]
+        if ti.abs(nrm[2]) >= min_normal_z:
+            # the height of the neighbourhood's plane (through its centroid) at the point's x, y
+            z = xyz[i, 2] + centre[2] + (nrm[0] * centre[0] + nrm[1] * centre[1]) / nrm[2]
+        out[i] = z
+
+
 def _check_rows(nbr, n):
     if len(nbr.shape) != 2 or int(nbr.shape[0]) != n:
         raise ValueError(f"knn_indices must have shape (n, k) with n={n}, got {tuple(nbr.shape)}")
@@ -152,6 +172,21 @@ def curvature(xyz, knn_indices):
     out = output_array(ti.f32, (n,), xyz)
     if n:
         _curvature(pts, nbr, out)
+    return like_input(out, xyz)
+
+
+def plane_heights(xyz, knn_indices, min_normal_z: float = 0.5):
+    """float32 (n,): each point's height on the least-squares plane of itself and its k
+    neighbours (``knn_indices`` (n, k) int32, every row full), at its own x, y; points whose plane
+    is steeper than ``min_normal_z`` (|normal z| below it: walls) keep their height. A moving
+    least-squares step of order one: the noise of a plane's heights falls as 1 / sqrt(k + 1)."""
+    pts = kernel_array(xyz, np.float32)
+    nbr = kernel_array(knn_indices, np.int32)
+    n = length(pts)
+    _check_rows(nbr, n)
+    out = output_array(ti.f32, (n,), xyz)
+    if n:
+        _plane_heights(pts, nbr, float(min_normal_z), out)
     return like_input(out, xyz)
 
 

@@ -55,9 +55,7 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
             area: float | None = None) -> dict:
     """The estimates of the module docstring for ``cloud``: a whole survey, or (with
     ``survey_points`` and ``area``) a uniform sample of one of that many points over that area."""
-    from roadx_ti.kernels.features import curvature as neighbourhood_curvature
     from roadx_ti.kernels.neighbors import knn
-    from roadx_ti.kernels.regions import coarse_gradient
 
     n = cloud.n
     total = n if survey_points is None else int(survey_points)
@@ -79,6 +77,29 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
         if len(first) >= 8:
             nn_first = knn(np.ascontiguousarray(flat[first]), 1)[1][:, 0]
             out["pulse_spacing_m"] = round(float(np.median(nn_first) * np.sqrt(len(xyz) / total)), 4)
+    dz = _neighbour_steps(xyz, idx)
+    out["height_noise_m"] = round(float(MAD_TO_SIGMA * np.median(np.abs(dz)) / np.sqrt(2.0)), 4)
+    grade = terrain_grade(xyz)
+    if grade is not None:
+        out["terrain_grade"] = round(grade, 4)
+    a = np.repeat(np.arange(len(xyz)), k)[idx.reshape(-1) >= 0]
+    b = idx.reshape(-1)[idx.reshape(-1) >= 0]
+    rgb = cloud.rgb8()
+    if rgb is not None and np.ptp(rgb) > 0:
+        grey = rgb[pick].mean(axis=1)
+        out["colour_noise"] = round(float(MAD_TO_SIGMA * np.median(np.abs(grey[b] - grey[a])) / np.sqrt(2.0)), 3)
+    log.info("survey estimates: %s", out)
+    return out
+
+
+def _neighbour_steps(xyz: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """Slope-corrected height differences of the pairs of the kNN rows ``idx`` of ``xyz`` whose
+    both ends are among the flatter half of the points (crowns, walls and edges have the curved
+    neighbourhoods; all pairs when fewer than 100 are)."""
+    from roadx_ti.kernels.features import curvature as neighbourhood_curvature
+    from roadx_ti.kernels.regions import coarse_gradient
+
+    k = idx.shape[1]
     gradient = coarse_gradient(xyz, 2.5)
     a = np.repeat(np.arange(len(xyz)), k)
     b = idx.reshape(-1)
@@ -86,22 +107,26 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     a, b = a[ok], b[ok]
     g = 0.5 * (gradient[a] + gradient[b])
     dz = (xyz[b, 2] - xyz[a, 2]) - (g * (xyz[b, :2] - xyz[a, :2])).sum(axis=1)
-    # smooth surfaces only: both ends among the flatter half of the points (crowns, walls and
-    # edges have the curved neighbourhoods)
     curvature = np.asarray(neighbourhood_curvature(xyz, idx))
     flat = curvature <= np.median(curvature)
     smooth = flat[a] & flat[b]
-    dz = dz[smooth] if smooth.sum() >= 100 else dz
-    out["height_noise_m"] = round(float(MAD_TO_SIGMA * np.median(np.abs(dz)) / np.sqrt(2.0)), 4)
-    grade = terrain_grade(xyz)
-    if grade is not None:
-        out["terrain_grade"] = round(grade, 4)
-    rgb = cloud.rgb8()
-    if rgb is not None and np.ptp(rgb) > 0:
-        grey = rgb[pick].mean(axis=1)
-        out["colour_noise"] = round(float(MAD_TO_SIGMA * np.median(np.abs(grey[b] - grey[a])) / np.sqrt(2.0)), 3)
-    log.info("survey estimates: %s", out)
-    return out
+    return dz[smooth] if smooth.sum() >= 100 else dz
+
+
+def height_noise(xyz: np.ndarray, sample_points: int = SAMPLE_POINTS, seed: int = 0) -> float | None:
+    """The height noise of ``xyz`` (m) as ``measure`` takes it (height_noise_m), on a uniform
+    sample; None for fewer than 9 points. On a ground stage's ground points it is the sensor's
+    noise on hard surfaces (IGN and AHN3 files 0.7-1.9 cm), which foliage does not inflate (the
+    whole survey reads 4-8 cm on wooded IGN tiles)."""
+    from roadx_ti.kernels.neighbors import knn
+
+    if len(xyz) < 9:
+        return None
+    pick = uniform_sample(len(xyz), sample_points, seed)
+    sample = np.ascontiguousarray(np.asarray(xyz)[pick], np.float32)
+    idx, _ = knn(sample, 8)
+    dz = _neighbour_steps(sample, np.asarray(idx))
+    return float(MAD_TO_SIGMA * np.median(np.abs(dz)) / np.sqrt(2.0))
 
 
 MIN_TERRAIN_PAIRS = 8     # cells with both neighbours occupied that a terrain grade needs

@@ -92,6 +92,9 @@ def spacing_cell(ctx: "StageContext", spacings: float, min_cell: float, fallback
 SURVEY_POINTS = "survey_points"
 # ctx.facts key (and a name in requires / provides): the GroundSurface of the last ground stage
 GROUND_SURFACE = "ground_surface"
+# ctx.facts key: the height noise of a ground stage's ground points (m; estimates.height_noise):
+# the sensor's noise on hard surfaces, which foliage does not inflate
+GROUND_NOISE = "ground_noise_m"
 # ctx.facts key: roadx_ti.footprint.DataEdge of the points a pipeline run got (a tile's with its
 # buffer), set before the first stage when a stage declares uses_data_edge
 DATA_EDGE = "data_edge"

@@ -25,8 +25,8 @@ from roadx_ti.cloud import Cloud
 from roadx_ti.errors import DataError
 from roadx_ti.estimates import TERRAIN_CELL, TERRAIN_REACH
 from roadx_ti.kernels.cloth import LATTICE_PERIOD, ClothResult, LatticeTooLarge, csf
-from roadx_ti.stages.base import (CLASS_GROUND, GROUND_SURFACE, SURVEY_Z_MIN, GroundSurface, Stage, StageContext,
-                                  StageOptions, StageResult, estimate)
+from roadx_ti.stages.base import (CLASS_GROUND, GROUND_NOISE, GROUND_SURFACE, SURVEY_Z_MIN, GroundSurface, Stage,
+                                  StageContext, StageOptions, StageResult, estimate)
 
 # In a tile, the cloth starts above the survey's lowest point (as the whole run's does), but never
 # more than this far below the tile's own lowest point: an archive's lowest point says nothing about
@@ -37,6 +37,9 @@ BYTES_PER_PARTICLE = 64  # the simulation's per-particle arrays (kernels/cloth.p
 # window's edge loses the terrain around it that holds the cloth up
 CLOTH_SPAN = 30.0
 CLOTH_STIFFNESS_PARTICLES = 15   # the cloth's stiffness carries its shape this many particles
+# m: the ground's own noise is measured (GROUND_NOISE) only where the survey's height_noise_m
+# estimate, an upper bound of it (foliage inflates it), exceeds this
+GROUND_NOISE_CHECK = 0.04
 # the terrain trend under steep surveys (roadx_ti.terrain_trend): the terrain_grade estimate's cells
 # and reach (buildings and crowns up to 4 cells across stand above it), cell minima smoothed over
 # about 1.5 cells
@@ -291,5 +294,14 @@ class ClothGround(_ClothStage):
         keep = ~result.ground
         # aligned with the working points; the pipeline narrows it to the kept ones
         height = result.height_above(cloud.xyz)
+        info = _info(result, self.options, ctx)
+        noise = estimate(ctx, "height_noise_m")
+        if noise is not None and float(noise) > GROUND_NOISE_CHECK:
+            from roadx_ti.estimates import height_noise
+            ground_noise = height_noise(cloud.xyz[result.ground])
+            noise = float(noise) if ground_noise is None else min(float(noise), ground_noise)
+        if noise is not None:
+            ctx.facts[GROUND_NOISE] = float(noise)
+            info["ground_noise_m"] = round(float(noise), 4)
         return StageResult(keep=keep, removed_class=CLASS_GROUND,
-                           point_data={"height_above_ground": height}, info=_info(result, self.options, ctx))
+                           point_data={"height_above_ground": height}, info=info)
