@@ -990,7 +990,7 @@ NOTES = {
         "4-8 cm with their foliage, even on their flattest tenth; their ground reads 0.7-1.9 cm (AHN3 1.0, "
         "the synthetic 2.1, +4 / +7 / +10 cm 3.9 / 6.1 / 8.1, sample_c at 2.3 points/m2 4.4). Now "
         "cloth_ground measures the noise of its ground points (`ground_noise_m`, where the survey's "
-        "estimate exceeds 4 cm) and roof_seeds (`denoise: auto`, `denoise_above` 3.5 cm) computes the "
+        "estimate exceeds 3 cm) and roof_seeds (`denoise: auto`, `denoise_above` 3.5 cm) computes the "
         "features on heights moved onto the least-squares plane of k = 2 (noise / 2.5 cm)^2 neighbours "
         "(kernels.features.plane_heights; walls keep theirs). After: +4 / +7 / +10 cm seeds 0-2 0.9756 / "
         "0.9754 / 0.9742, 0.9604 / 0.9578 / 0.9540, 0.9655 / 0.9652 / 0.9621; held out seeds 3-5 at +4 cm "

@@ -38,8 +38,9 @@ BYTES_PER_PARTICLE = 64  # the simulation's per-particle arrays (kernels/cloth.p
 CLOTH_SPAN = 30.0
 CLOTH_STIFFNESS_PARTICLES = 15   # the cloth's stiffness carries its shape this many particles
 # m: the ground's own noise is measured (GROUND_NOISE) only where the survey's height_noise_m
-# estimate, an upper bound of it (foliage inflates it), exceeds this
-GROUND_NOISE_CHECK = 0.04
+# estimate, an upper bound of it (foliage inflates it), exceeds this; below, the estimate stands
+# for it (under roof_seeds' denoise_above, 3.5 cm)
+GROUND_NOISE_CHECK = 0.03
 # the terrain trend under steep surveys (roadx_ti.terrain_trend): the terrain_grade estimate's cells
 # and reach (buildings and crowns up to 4 cells across stand above it), cell minima smoothed over
 # about 1.5 cells

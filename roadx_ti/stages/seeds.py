@@ -19,8 +19,7 @@ from pydantic import Field
 
 from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
-from roadx_ti.stages.base import (GROUND_NOISE, Stage, StageContext, StageOptions, StageResult, estimate,
-                                  survey_spacing)
+from roadx_ti.stages.base import GROUND_NOISE, Stage, StageContext, StageOptions, StageResult, survey_spacing
 
 MAX_PLANE_K = 31     # the denoising planes' neighbours (kNN rows of at most 32)
 
@@ -50,7 +49,7 @@ class RoofSeedsOptions(StageOptions):
     denoise: Literal["auto"] | bool = Field("auto", description="features (normals, curvature, seeds) on "
                                            "heights moved onto their neighbourhood's plane (kernels.features."
                                            "plane_heights): true, false, or 'auto' where the ground's noise "
-                                           "(cloth_ground's ground_noise_m, else the survey's height_noise_m) "
+                                           "(cloth_ground's ground_noise_m; without a ground stage, never) "
                                            "exceeds denoise_above. Curvature over k neighbours grows as (noise / "
                                            "their radius)^2: at 7-10 cm of noise roofs had no seeds")
     denoise_above: float = Field(0.035, gt=0, description="noise (m) above which 'auto' denoises; the real "
@@ -156,7 +155,9 @@ class RoofSeeds(Stage):
                 spacing = _spacing_of(cloud.xyz)
                 r_max_source = "auto (spacing of this stage's points)"
             r_max = auto_r_max(float(spacing), k, o.r_max_radii) if spacing else None
-        noise = ctx.facts.get(GROUND_NOISE, estimate(ctx, "height_noise_m"))
+        # the ground's noise only: the survey's estimate reads foliage as noise (wooded IGN tiles
+        # 4-8 cm), and planes through foliage make seeds of it; no ground stage, no evidence
+        noise = ctx.facts.get(GROUND_NOISE)
         plane_k = 0
         if o.denoise is True or (o.denoise == "auto" and noise is not None and float(noise) > o.denoise_above):
             ratio = float(noise or o.denoise_target) / o.denoise_target
