@@ -161,18 +161,23 @@ def _check_rows(nbr, n):
         raise ValueError(f"knn_indices must have shape (n, k) with n={n}, got {tuple(nbr.shape)}")
 
 
-def curvature(xyz, knn_indices):
-    """float32 (n,): covariance_features' 'curvature' alone (the same values, bit for bit), from a
-    kernel without eigenvectors, normals and extents: less to compile where only it is needed
-    (the survey estimates)."""
+def _per_point(kernel, xyz, knn_indices, *args):
+    """float32 (n,) from ``kernel(points, rows, *args, out)`` over the points and their kNN rows."""
     pts = kernel_array(xyz, np.float32)
     nbr = kernel_array(knn_indices, np.int32)
     n = length(pts)
     _check_rows(nbr, n)
     out = output_array(ti.f32, (n,), xyz)
     if n:
-        _curvature(pts, nbr, out)
+        kernel(pts, nbr, *args, out)
     return like_input(out, xyz)
+
+
+def curvature(xyz, knn_indices):
+    """float32 (n,): covariance_features' 'curvature' alone (the same values, bit for bit), from a
+    kernel without eigenvectors, normals and extents: less to compile where only it is needed
+    (the survey estimates)."""
+    return _per_point(_curvature, xyz, knn_indices)
 
 
 def plane_heights(xyz, knn_indices, min_normal_z: float = 0.5):
@@ -180,14 +185,7 @@ def plane_heights(xyz, knn_indices, min_normal_z: float = 0.5):
     neighbours (``knn_indices`` (n, k) int32, every row full), at its own x, y; points whose plane
     is steeper than ``min_normal_z`` (|normal z| below it: walls) keep their height. A moving
     least-squares step of order one: the noise of a plane's heights falls as 1 / sqrt(k + 1)."""
-    pts = kernel_array(xyz, np.float32)
-    nbr = kernel_array(knn_indices, np.int32)
-    n = length(pts)
-    _check_rows(nbr, n)
-    out = output_array(ti.f32, (n,), xyz)
-    if n:
-        _plane_heights(pts, nbr, float(min_normal_z), out)
-    return like_input(out, xyz)
+    return _per_point(_plane_heights, xyz, knn_indices, float(min_normal_z))
 
 
 def covariance_features(xyz, knn_indices) -> dict:
