@@ -71,7 +71,8 @@ def sym_eigen3(a: ti.math.mat3, vectors: ti.template() = True):
 @ti.func
 def _neighbourhood_covariance(xyz: ti.template(), nbr: ti.template(), i: ti.i32):
     """Covariance of point i and its neighbours about their centroid (coordinates relative to the
-    point), with the per-axis extent of the offsets and the largest squared distance."""
+    point), with the per-axis extent of the offsets, the largest squared distance and the
+    centroid (relative to the point)."""
     k = nbr.shape[1]
     p = ti.math.vec3(xyz[i, 0], xyz[i, 1], xyz[i, 2])
     total = ti.math.vec3(0.0)          # p's own offset is 0
@@ -94,7 +95,7 @@ def _neighbourhood_covariance(xyz: ti.template(), nbr: ti.template(), i: ti.i32)
         d = ti.math.vec3(xyz[j, 0], xyz[j, 1], xyz[j, 2]) - p - centre
         cov += d.outer_product(d)
     cov /= ti.cast(k + 1, ti.f32)
-    return cov, hi - lo, far2
+    return cov, hi - lo, far2, centre
 
 
 @ti.func
@@ -113,7 +114,7 @@ def _covariance_features(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.ty
                          max_distance: ti.types.ndarray(dtype=ti.f32, ndim=1),
                          extent: ti.types.ndarray(dtype=ti.f32, ndim=2)):
     for i in range(xyz.shape[0]):
-        cov, span, far2 = _neighbourhood_covariance(xyz, nbr, i)
+        cov, span, far2, _centre = _neighbourhood_covariance(xyz, nbr, i)
         w, v = sym_eigen3(cov)
         w = ti.max(w, 0.0)                  # rounding can leave a tiny negative l0
         nrm = ti.math.vec3(v[0, 0], v[1, 0], v[2, 0]).normalized()
@@ -131,7 +132,7 @@ def _covariance_features(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.ty
 def _curvature(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.types.ndarray(dtype=ti.i32, ndim=2),
                curvature: ti.types.ndarray(dtype=ti.f32, ndim=1)):
     for i in range(xyz.shape[0]):
-        cov, _span, _far2 = _neighbourhood_covariance(xyz, nbr, i)
+        cov, _span, _far2, _centre = _neighbourhood_covariance(xyz, nbr, i)
         w, _v = sym_eigen3(cov, False)
         curvature[i] = _curvature_of(ti.max(w, 0.0))
 
@@ -140,15 +141,9 @@ def _curvature(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.types.ndarra
 def _plane_heights(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.types.ndarray(dtype=ti.i32, ndim=2),
                    min_normal_z: ti.f32, out: ti.types.ndarray(dtype=ti.f32, ndim=1)):
     for i in range(xyz.shape[0]):
-        cov, _span, _far2 = _neighbourhood_covariance(xyz, nbr, i)
+        cov, _span, _far2, centre = _neighbourhood_covariance(xyz, nbr, i)
         w, v = sym_eigen3(cov)
         nrm = ti.math.vec3(v[0, 0], v[1, 0], v[2, 0]).normalized()
-        p = ti.math.vec3(xyz[i, 0], xyz[i, 1], xyz[i, 2])
-        total = ti.math.vec3(0.0)
-        for r in range(nbr.shape[1]):
-            j = nbr[i, r]
-            total += ti.math.vec3(xyz[j, 0], xyz[j, 1], xyz[j, 2]) - p
-        centre = total / ti.cast(nbr.shape[1] + 1, ti.f32)
         z = xyz[i, 2]
         if ti.abs(nrm[2]) >= min_normal_z:
             # the height of the neighbourhood's plane (through its centroid) at the point's x, y

@@ -303,7 +303,9 @@ def cmd_run(args) -> int:
     written.update({name: "float32" for stage, _ in stage_specs for name in stage_class(stage).writes})
     io.check_writable(out, cloud, written)
 
-    factors = _survey_units(cloud)
+    from roadx_ti.io import crs as io_crs
+    crs = io_crs.of_cloud(cloud)
+    factors = _survey_units(cloud, crs)
     work = units.in_metres(cloud, factors)
 
     arch = backend.init(cfg.backend, threads=cfg.threads)
@@ -364,7 +366,7 @@ def cmd_run(args) -> int:
             if len(surface.parts) > 1:
                 log.warning("output.dtm: the cloud is %d parts more than 100 m apart; the DTM covers the "
                             "largest (a raster over all would be sized by the gaps)", len(surface.parts))
-            summary["dtm"] = _write_dtm(dtm_path, units.surface_in_units(surface, factors), cloud)
+            summary["dtm"] = _write_dtm(dtm_path, units.surface_in_units(surface, factors), cloud, crs)
     from roadx_ti import report
     jsonio.write(paths["summary"], summary)
     with io.atomic_output(paths["config"]) as tmp:
@@ -378,12 +380,9 @@ def cmd_run(args) -> int:
     return EXIT_OK
 
 
-def _survey_units(cloud):
-    """The metres per unit of the cloud's CRS (roadx_ti.units), logged when not metres; a cloud in
-    longitude / latitude degrees stops the run with one line."""
-    from roadx_ti.io import crs as io_crs
-
-    crs = io_crs.of_cloud(cloud)
+def _survey_units(cloud, crs):
+    """The metres per unit of the cloud's CRS ``crs`` (roadx_ti.units), logged when not metres; a
+    cloud in longitude / latitude degrees stops the run with one line."""
     if units.is_degrees(crs, cloud):
         raise DataError(f"{cloud.source}: coordinates are longitude / latitude degrees ({crs.to_string()}); "
                         "the stages' lengths are metres: reproject it to a projected CRS first, e.g. pdal "
@@ -411,13 +410,11 @@ def _scene_name(cfg, cloud) -> str:
     return f"synthetic {s.kind} scene, {s.points:,} points, seed {s.seed}"
 
 
-def _write_dtm(path: Path, surface, cloud) -> dict:
+def _write_dtm(path: Path, surface, cloud, crs) -> dict:
     """The ground surface (stages.base.GroundSurface) as a DTM raster over the occupied space, with
-    the input's CRS."""
+    the input's CRS ``crs`` (rasterio CRS or None)."""
     from roadx_ti import dtm
-    from roadx_ti.io import crs as io_crs
 
-    crs = io_crs.of_cloud(cloud)
     t = dtm.write(path, surface.largest, surface.origin, xy=cloud.xyz[:, :2], crs=crs)
     log.info("wrote DTM %s: %d x %d cells of %g m over the occupied area (%d with data)", path,
              t["cols"], t["rows"], t["cell_size"], t["valid_cells"])
@@ -456,7 +453,6 @@ def _run_tiled(cfg, out: Path, args) -> int:
         raise config.ConfigError("config error: input: tiled runs read files; give input.paths or --input")
     from roadx_ti.tiling.run import dtm_output
     inputs = [f.path for f in tiling.catalog(cfg.input.paths, warn=False)]
-    _check_tiled_units(inputs)
     dtm_path = dtm_output(cfg, out, cfg.output.mode)
     if dtm_path is not None and (cfg.output.mode != "per-file" or isinstance(cfg.output.dtm, str)):
         # (per-file's own dtm.tif goes into the output folder, made below)
@@ -492,21 +488,6 @@ def _run_tiled(cfg, out: Path, args) -> int:
     log.info("tiled run: %d tiles, %d points written", len(summary.get("tiles", [])),
              summary.get("points_written", 0))
     return EXIT_OK
-
-
-def _check_tiled_units(inputs) -> None:
-    """Tiled runs plan windows and buffers in the files' own units: a catalog whose CRS is not in
-    metres stops with one line (a whole-file run converts; units.py)."""
-    from roadx_ti.io import crs as io_crs
-
-    for path in inputs:
-        if Path(path).suffix.lower() not in (".las", ".laz"):
-            continue
-        factors = units.metre_factors(io_crs.of_path(path))
-        if not factors.metric:
-            raise UsageError(f"{path}: counts in {factors.name}; tiled runs work in the files' units and "
-                             "need metres: run the file whole (without --tile-size / tiling.auto) or "
-                             "reproject the catalog to a metric CRS")
 
 
 def _make_parent(out: Path) -> None:

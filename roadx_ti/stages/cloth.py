@@ -223,9 +223,8 @@ def _lower_plateaus(result: ClothResult, xyz: np.ndarray, options: ClothOptions)
     the plateaus found."""
     supported = plateaus.supported_cells(result, xyz, result.ground)
     occupied = plateaus.supported_cells(result, xyz, np.ones(len(xyz), bool))
-    reach = max(CLOTH_SPAN, CLOTH_STIFFNESS_PARTICLES * float(options.cloth_resolution))
-    patched, found = plateaus.find(result.cloth_z, supported, result.resolution, options.plateau_step, reach,
-                                   occupied)
+    patched, found = plateaus.find(result.cloth_z, supported, result.resolution, options.plateau_step,
+                                   _ClothStage.reach(options), occupied)
     if patched is not None:
         result.cloth_z = patched
         result.ground = np.abs(result.height_above(xyz)) < options.class_threshold

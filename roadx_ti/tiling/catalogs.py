@@ -73,7 +73,8 @@ def catalog(inputs, warn: bool = True) -> list[CatalogFile]:
 
 def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> None:
     """Files that one run may take together (LAS/LAZ headers; other formats carry neither CRS nor
-    scales): an InputError when two name different coordinate systems (their coordinates do not
+    scales): a ValueError when one counts in other units than metres (roadx_ti.units); an InputError
+    when two name different coordinate systems (their coordinates do not
     share one frame: tiles, buffers and the merged output would mix them); a warning when some
     name one and others none (assumed the same) or only their vertical CRSs differ, and, for a
     merged LAS/LAZ output (written from the records: other formats take world coordinates), when their scales or
@@ -82,18 +83,26 @@ def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> No
     from roadx_ti import io
     from roadx_ti.io.crs import of_header
 
-    log = log or log_default
-    las = [f for f in files if Path(f.path).suffix.lower() in LAS_SUFFIXES]
-    if len(las) < 2:
-        return
     import laspy
 
+    from roadx_ti import units
+
+    log = log or log_default
+    las = [f for f in files if Path(f.path).suffix.lower() in LAS_SUFFIXES]
     crs, grids = {}, {}
     for f in las:
         with laspy.open(f.path) as reader:
             crs[f.path] = of_header(reader.header)
             grids[f.path] = (tuple(float(v) for v in reader.header.scales),
                              tuple(float(v) for v in reader.header.offsets))
+        factors = units.metre_factors(crs[f.path])
+        if not factors.metric:
+            # windows and buffers are planned in the files' units (a whole-file run converts)
+            raise ValueError(f"{f.path}: counts in {factors.name}; tiled runs work in the files' units and "
+                             "need metres: run the file whole (without --tile-size / tiling.auto) or "
+                             "reproject the catalog to a metric CRS")
+    if len(las) < 2:
+        return
     named = {p: c for p, c in crs.items() if c is not None}
     if named:
         first_path, first = next(iter(named.items()))
