@@ -24,14 +24,14 @@ REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
 
-def load_base(rev: str):
-    """kernels/neighbors.py at ``rev`` as module roadx_ti.kernels._neighbors_base."""
-    source = subprocess.run(["git", "-C", str(REPO), "show", f"{rev}:kernels/neighbors.py"],
+def load_base(rev: str, name: str = "neighbors"):
+    """kernels/NAME.py at ``rev`` as module roadx_ti.kernels._NAME_base."""
+    source = subprocess.run(["git", "-C", str(REPO), "show", f"{rev}:kernels/{name}.py"],
                             capture_output=True, text=True, check=True).stdout
     # Taichi reads a kernel's source through inspect: the module must live in a real file
-    path = Path(tempfile.mkdtemp(prefix="knn_ab_")) / "_neighbors_base.py"
+    path = Path(tempfile.mkdtemp(prefix=f"{name}_ab_")) / f"_{name}_base.py"
     path.write_text(source)
-    spec = importlib.util.spec_from_file_location("roadx_ti.kernels._neighbors_base", path)
+    spec = importlib.util.spec_from_file_location(f"roadx_ti.kernels._{name}_base", path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module
     spec.loader.exec_module(module)
