@@ -12,12 +12,10 @@ the base has none. Prints medians and the base / new ratio per round.
 from __future__ import annotations
 
 import argparse
-import subprocess
-import time
 
 import numpy as np
 
-from knn_ab import REPO, load_base
+from knn_ab import alternating, describe, load_base
 
 
 def main():
@@ -33,9 +31,7 @@ def main():
     from roadx_ti.kernels import features as new
     from roadx_ti.kernels.neighbors import knn
     base = load_base(args.base, "features")
-    head = subprocess.run(["git", "-C", str(REPO), "describe", "--always", "--dirty"], capture_output=True,
-                          text=True, check=True).stdout.strip()
-    print(f"features, base {args.base} against {head}, {args.rounds} alternating rounds (base, new)")
+    print(f"features, base {args.base} against {describe()}, {args.rounds} alternating rounds (base, new)")
     print("| points | call | base median | new median | base / new per round | identical |")
     print("|---|---|---:|---:|---|---|")
     for size in args.points.split(","):
@@ -48,21 +44,12 @@ def main():
             a, b = call(base), call(new)           # warm-up: compile, first touch
             pairs = zip(a.values(), b.values()) if isinstance(a, dict) else [(a, b)]
             same = all(np.array_equal(np.asarray(x), np.asarray(y)) for x, y in pairs)
-            times = {"base": [], "new": []}
-            for _ in range(args.rounds):
-                for tag, module in (("base", base), ("new", new)):
-                    t0 = time.perf_counter()
-                    call(module)
-                    times[tag].append(time.perf_counter() - t0)
+            times = alternating(call, args.rounds, {"base": base, "new": new})
             ratios = ", ".join(f"{b / a:.3f}" for b, a in zip(times["base"], times["new"]))
             print(f"| {size} | {name} | {np.median(times['base']):.3f} s | {np.median(times['new']):.3f} s | "
                   f"{ratios} | {'yes' if same else 'NO'} |", flush=True)
         new.plane_heights(xyz, rows[16])
-        spent = []
-        for _ in range(args.rounds):
-            t0 = time.perf_counter()
-            new.plane_heights(xyz, rows[16])
-            spent.append(time.perf_counter() - t0)
+        spent = alternating(lambda module: module.plane_heights(xyz, rows[16]), args.rounds, {"new": new})["new"]
         print(f"| {size} | plane_heights k16 | - | {np.median(spent):.3f} s | - | - |", flush=True)
 
 

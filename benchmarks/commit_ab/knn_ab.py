@@ -38,6 +38,24 @@ def load_base(rev: str, name: str = "neighbors"):
     return module
 
 
+def describe() -> str:
+    """This checkout's commit (``-dirty`` with uncommitted changes)."""
+    return subprocess.run(["git", "-C", str(REPO), "describe", "--always", "--dirty"], capture_output=True,
+                          text=True, check=True).stdout.strip()
+
+
+def alternating(call, rounds: int, sides: dict) -> dict:
+    """{side: [seconds per round]}: ``call(module)`` for each of ``sides`` ({name: module}) in turn,
+    ``rounds`` times, so that the shared machine's load drifts over every side alike."""
+    times = {tag: [] for tag in sides}
+    for _ in range(rounds):
+        for tag, module in sides.items():
+            t0 = time.perf_counter()
+            call(module)
+            times[tag].append(time.perf_counter() - t0)
+    return times
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--base", required=True, help="git revision of the base kernels/neighbors.py")
@@ -51,9 +69,7 @@ def main():
     backend.init("cpu")
     from roadx_ti.kernels import neighbors as new
     base = load_base(args.base)
-    head = subprocess.run(["git", "-C", str(REPO), "describe", "--always", "--dirty"], capture_output=True,
-                          text=True, check=True).stdout.strip()
-    print(f"kNN k={args.k}, base {args.base} against {head}, {args.rounds} alternating rounds (base, new)")
+    print(f"kNN k={args.k}, base {args.base} against {describe()}, {args.rounds} alternating rounds (base, new)")
     print("| points | base median | new median | base / new per round | identical |")
     print("|---|---:|---:|---|---|")
     for size in args.points.split(","):
@@ -64,12 +80,7 @@ def main():
             results[tag] = module.knn(xyz, args.k)              # warm-up: compile, first touch
         same = all(np.array_equal(a, b) for a, b in zip(results["base"], results["new"]))
         del results
-        times = {"base": [], "new": []}
-        for _ in range(args.rounds):
-            for tag, module in (("base", base), ("new", new)):
-                t0 = time.perf_counter()
-                module.knn(xyz, args.k)
-                times[tag].append(time.perf_counter() - t0)
+        times = alternating(lambda module: module.knn(xyz, args.k), args.rounds, {"base": base, "new": new})
         ratios = ", ".join(f"{b / a:.3f}" for b, a in zip(times["base"], times["new"]))
         print(f"| {size} | {np.median(times['base']):.3f} s | {np.median(times['new']):.3f} s | {ratios} | "
               f"{'yes' if same else 'NO'} |", flush=True)
