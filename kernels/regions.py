@@ -25,7 +25,7 @@ rounds, one region at a time, for tests.
 
 import numpy as np
 
-from .common import is_ndarray, kernel_array, length, like_input, output_array, to_numpy
+from .common import host_memory_backend, is_ndarray, kernel_array, length, like_input, output_array, to_numpy
 from .taichi_compat import ti
 
 MAX_ROW = 33          # a point and at most 32 neighbours
@@ -329,7 +329,7 @@ STEP_SCALE = 4096          # step probabilities -> int64 sums
 _EMPTY = np.iinfo(np.int64).max
 MAX_LOAD = 0.7             # largest share of the pair table's slots in use (linear probing)
 # the merge rounds re-key their pairs through tables of at most about this many slots (24 B each),
-# one partition of the keys (by hash) at a time: one table for all of a 16 M-point survey's first
+# one run of partitions of the keys (by hash) at a time: one table for all of a 16 M-point survey's first
 # re-keying took 2^25 slots, 805 MB, at the peak of the road pipeline
 MAX_TABLE_BITS = 22
 _NO_PART = 255             # an item of the last round that joins regions that are now one
@@ -337,6 +337,11 @@ _KEPT = 254                # ... that is carried as it is
 NARROW_STEPS_MAX = 2**31 - 1  # a pair list's step sums are int32 while every sum is at most this
 EDGE_CHUNK = 1 << 22      # edges per chunk of the final region graph's pass over every edge
 MAX_PART_BITS = 7          # at most 128 partitions (a uint8 per item names its kind)
+# on the CPU, compacted pair lists are grouped by their first region's id in at most this many
+# buckets (a few thousand regions each: their counts, colour sums and offers fit a core's cache),
+# counted in at most MAX_TABLE_BLOCKS blocks of the table's slots
+ID_BUCKETS = 256
+MAX_TABLE_BLOCKS = 1024
 _HASH = -7046029254386353131      # 0x9E3779B97F4A7C15 as a signed 64-bit constant
 
 
@@ -398,7 +403,7 @@ def _insert_key(table: ti.template(), key: ti.i64, bits: ti.i32, part_bits: ti.i
 def _insert_pairs(ea: ti.types.ndarray(dtype=ti.i32, ndim=1), eb: ti.types.ndarray(dtype=ti.i32, ndim=1),
                   start: ti.i32, items: ti.i32, label: ti.types.ndarray(dtype=ti.i32, ndim=1),
                   table: ti.types.ndarray(dtype=ti.i64, ndim=2), bits: ti.i32, part_bits: ti.i32, n: ti.i64):
-    """Items [start, start + items)'s region pairs (one partition's) into its open-addressing
+    """Items [start, start + items)'s region pairs (one run of partitions') into its open-addressing
     table (_insert_key)."""
     for e in range(start, start + items):
         la = label[ea[e]]
@@ -501,21 +506,22 @@ def _carry_counts(ua: ti.types.ndarray(dtype=ti.i32, ndim=1), ub: ti.types.ndarr
 @ti.kernel
 def _gather_kind(ua: ti.types.ndarray(dtype=ti.i32, ndim=1), ub: ti.types.ndarray(dtype=ti.i32, ndim=1),
                  uw: ti.types.ndarray(ndim=1), us: ti.types.ndarray(ndim=1), items: ti.i32,
-                 part: ti.types.ndarray(dtype=ti.u8, ndim=1), kind: ti.i32, block: ti.i32,
+                 part: ti.types.ndarray(dtype=ti.u8, ndim=1), kind: ti.i32, kind_end: ti.i32, block: ti.i32,
                  offsets: ti.types.ndarray(dtype=ti.i32, ndim=1),
                  pa: ti.types.ndarray(dtype=ti.i32, ndim=1), pb: ti.types.ndarray(dtype=ti.i32, ndim=1),
                  pw: ti.types.ndarray(dtype=ti.i32, ndim=1), ps: ti.types.ndarray(ndim=1), wide: ti.template()):
-    """The last round's items of one kind (_carry_counts: _KEPT, or a partition of the re-keyed)
-    into a list of their own, in order, each block from its offset: a pair neither of whose
-    regions took part in the last round's merges is still a distinct pair and is carried as it
-    is; the others are re-keyed through their partition's table (merges may have made several
+    """The last round's items of the kinds [kind, kind_end) (_carry_counts: _KEPT, or a run of
+    partitions of the re-keyed) into a list of their own, in order, each block from its offset: a
+    pair neither of whose regions took part in the last round's merges is still a distinct pair
+    and is carried as it is; the others are re-keyed through their run's table (merges may have made several
     of them one pair); a re-keyed pair keeps a region that took part, so it never equals a
     carried one. ``uw`` / ``us``: the graph's per-edge uint8 / int16 in the first rounds; ``ps``
     int64 when ``wide``, else int32."""
     for blk in range(offsets.shape[0]):
         at = offsets[blk]
         for e in range(blk * block, ti.min(blk * block + block, items)):
-            if ti.cast(part[e], ti.i32) == kind:
+            k = ti.cast(part[e], ti.i32)
+            if k >= kind and k < kind_end:
                 pa[at] = ua[e]
                 pb[at] = ub[e]
                 pw[at] = ti.cast(uw[e], ti.i32)
@@ -527,51 +533,57 @@ def _gather_kind(ua: ti.types.ndarray(dtype=ti.i32, ndim=1), ub: ti.types.ndarra
 
 
 @ti.kernel
-def _table_counts(table: ti.types.ndarray(dtype=ti.i64, ndim=2), size: ti.i32, block: ti.i32,
-                  counts: ti.types.ndarray(dtype=ti.i32, ndim=1), largest: ti.types.ndarray(dtype=ti.i64, ndim=1)):
-    """Per block of slots: the pairs in use and their largest step sum."""
+def _table_counts(table: ti.types.ndarray(dtype=ti.i64, ndim=2), size: ti.i32, block: ti.i32, n: ti.i64,
+                  shift: ti.i32, counts: ti.types.ndarray(dtype=ti.i32, ndim=2),
+                  largest: ti.types.ndarray(dtype=ti.i64, ndim=1)):
+    """Per block of slots: the pairs in use per bucket of their first region (a >> shift) and
+    their largest step sum."""
     for blk in range(counts.shape[0]):
-        used = 0
         top = ti.i64(0)
         for s in range(blk * block, ti.min(blk * block + block, size)):
-            if table[s, 0] != ti.i64(_EMPTY):
-                used += 1
+            key = table[s, 0]
+            if key != ti.i64(_EMPTY):
+                counts[blk, ti.cast(key // n, ti.i32) >> shift] += 1
                 top = ti.max(top, table[s, 2])
-        counts[blk] = used
         largest[blk] = top
 
 
 @ti.kernel
 def _compact_pairs(table: ti.types.ndarray(dtype=ti.i64, ndim=2), size: ti.i32, block: ti.i32, n: ti.i64,
-                   offsets: ti.types.ndarray(dtype=ti.i32, ndim=1),
+                   shift: ti.i32, offsets: ti.types.ndarray(dtype=ti.i32, ndim=2),
                    pa: ti.types.ndarray(dtype=ti.i32, ndim=1), pb: ti.types.ndarray(dtype=ti.i32, ndim=1),
                    weight: ti.types.ndarray(dtype=ti.i32, ndim=1), steps: ti.types.ndarray(ndim=1),
                    wide: ti.template()):
-    """The table's pairs, in slot order, as a dense list from each block's offset (_table_counts);
-    every slot is left empty. ``steps``: int64 when ``wide``, else int32 (every sum fits)."""
+    """The table's pairs as a dense list grouped by bucket of their first region (a >> shift),
+    each block's pairs of a bucket from its offset (_table_counts; the offsets are its cursors),
+    in slot order within them: the next rounds read the regions' counts, sums and best offers of
+    each pair, which then lie close in memory (hash order scattered them over every region: the
+    rounds' pair passes ran 1.7-2x slower). Every slot is left empty. ``steps``: int64 when
+    ``wide``, else int32 (every sum fits)."""
     for blk in range(offsets.shape[0]):
-        at = offsets[blk]
         for s in range(blk * block, ti.min(blk * block + block, size)):
             key = table[s, 0]
             if key != ti.i64(_EMPTY):
-                pa[at] = ti.cast(key // n, ti.i32)
+                a = ti.cast(key // n, ti.i32)
+                at = offsets[blk, a >> shift]
+                offsets[blk, a >> shift] = at + 1
+                pa[at] = a
                 pb[at] = ti.cast(key % n, ti.i32)
                 weight[at] = ti.cast(table[s, 1], ti.i32)
                 if ti.static(wide):
                     steps[at] = table[s, 2]
                 else:
                     steps[at] = ti.cast(table[s, 2], ti.i32)
-                at += 1
                 # the slot emptied again: the table is clear for the next round
                 table[s, 0] = ti.i64(_EMPTY)
                 table[s, 1] = 0
                 table[s, 2] = 0
 
 
-def _blocks(items: int):
-    """(block length, number of blocks) of a blocked pass: enough blocks for every thread, each
-    long enough that a thread's serial loop outweighs its launch."""
-    count = max(1, min(16384, -(-items // 256)))
+def _blocks(items: int, most: int = 16384):
+    """(block length, number of blocks) of a blocked pass: enough blocks for every thread (at most
+    ``most``), each long enough that a thread's serial loop outweighs its launch."""
+    count = max(1, min(most, -(-items // 256)))
     block = max(1, -(-items // count))
     return block, -(-items // block) if items else 1
 
@@ -715,8 +727,8 @@ def _device_round(state, chunks, n, level, size_pass, min_size, max_chroma, veto
     """The same round with the kernels (64-bit integer atomics), on pair lists that stay in the
     kernels' memory: ``chunks``, the last round's pairs as a list of (a, b, edges, steps, count).
     Pairs that the last round's merges did not touch are carried over into one list; the others
-    go through the hash table, one partition of their keys at a time, each partition's distinct
-    pairs into a list of their own. Every list is made at its exact length: a round holds the
+    go through the hash table, one run of partitions of their keys at a time, each run's distinct
+    pairs into a list of their own (grouped by their first region: _compact_pairs). Every list is made at its exact length: a round holds the
     last round's pairs and its own, never a buffer for all the items before their merging (at
     16 M points the second round's was 640 MB and the survey's peak). ``first``: None in later
     rounds; in the first, "distinct" when the graph's edges are distinct pairs (used as they
@@ -743,10 +755,14 @@ def _carry_and_rekey(state, chunks, n, everything):
     label, hook, targeted, table = state[0], state[4], state[5], state[7]
     like = chunks[0][0]
     m = sum(c[4] for c in chunks)
-    # the re-keyed pairs go through tables of at most about 2^MAX_TABLE_BITS slots, one
-    # partition of their keys (by hash) at a time (the partitions are chosen for all m items,
-    # an upper bound of those re-keyed)
-    part_bits = min(max(0, int(np.ceil(np.log2(max(m, 1) / (MAX_LOAD * (1 << MAX_TABLE_BITS)))))), MAX_PART_BITS)
+    # the re-keyed pairs go through tables of at most about 2^MAX_TABLE_BITS slots: when all m
+    # items (an upper bound of those re-keyed) could overflow one, each item is put in one of
+    # 2^MAX_PART_BITS partitions of the keys (by hash) and runs of partitions go through the
+    # table together, as many as the items re-keyed this round fill (later rounds re-key few of
+    # their pairs: partitions chosen for all m items took as many passes over the items as the
+    # second round's)
+    capacity = int(MAX_LOAD * (1 << MAX_TABLE_BITS))
+    part_bits = MAX_PART_BITS if m > capacity else 0
     kinds = []                  # per chunk: each item's kind, and per block the items of each kind
     for ua, ub, _, _, items in chunks:
         block, n_blocks = _blocks(items)
@@ -760,9 +776,10 @@ def _carry_and_rekey(state, chunks, n, everything):
     # kernel variant each for the usual lists (every variant is compiled or loaded per process)
     wide = any(_is_int64(c[3]) for c in chunks)
     if size[0]:
-        out.append(_gather(chunks, kinds, 0, _KEPT, int(size[0]), like, wide))
-    if size[1:].any():
-        bits = max(4, int(np.ceil(np.log2(int(size[1:].max()) / MAX_LOAD))))
+        out.append(_gather(chunks, kinds, (0, 1), (_KEPT, _KEPT + 1), int(size[0]), like, wide))
+    groups = _partition_runs(size[1:], capacity)
+    if groups:
+        bits = max(4, int(np.ceil(np.log2(max(int(size[1 + lo:1 + hi].sum()) for lo, hi in groups) / MAX_LOAD))))
         # made again when too small, or more than twice too large (later rounds re-key fewer
         # pairs: a table kept from the second round was 50 MB at the third round's peak)
         if table[0] is None or int(table[0].shape[0]) not in (1 << bits, 2 << bits):
@@ -770,26 +787,58 @@ def _carry_and_rekey(state, chunks, n, everything):
             table[0] = output_array(ti.i64, (1 << bits, 3), table[1])
             _clear_table(table[0], 1 << bits)          # then each compaction empties it again
         rows, size_t = table[0], 1 << bits
-        tblock, t_blocks = _blocks(size_t)
-    for p in np.flatnonzero(size[1:]):
-        pa, pb, pw, ps, items = _gather(chunks, kinds, 1 + p, int(p), int(size[1 + p]), like, wide)
+        # grouped on the CPU, whose cores' caches the grouping is for; a GPU keeps a thread per
+        # 256 slots and one bucket (its blocks x buckets counts would be 16 MB a round)
+        grouped = host_memory_backend()
+        tblock, t_blocks = _blocks(size_t, MAX_TABLE_BLOCKS if grouped else 16384)
+        shift = _bucket_shift(n) if grouped else 31
+        buckets = ((n - 1) >> shift) + 1
+    for lo, hi in groups:
+        pa, pb, pw, ps, items = _gather(chunks, kinds, (1 + lo, 1 + hi), (lo, hi), int(size[1 + lo:1 + hi].sum()),
+                                        like, wide)
         _insert_pairs(pa, pb, 0, items, label, rows, bits, part_bits, n)
         _accumulate_pairs(pa, pb, pw, ps, 0, items, label, rows, bits, part_bits, n)
         del pa, pb, pw, ps
-        used = output_array(ti.i32, (t_blocks,), like)
+        used = output_array(ti.i32, (t_blocks, buckets), like)
         largest = output_array(ti.i64, (t_blocks,), like)
-        _table_counts(rows, size_t, tblock, used, largest)
+        _table_counts(rows, size_t, tblock, n, shift, used, largest)
         u = np.asarray(to_numpy(used), np.int64)
-        starts = np.zeros(t_blocks, np.int64)
-        np.cumsum(u[:-1], out=starts[1:])
-        pairs = int(u.sum())
+        # block b's pairs of bucket j start after every pair of the buckets before j and block b's
+        # predecessors' pairs of bucket j
+        per_bucket = u.sum(axis=0)
+        starts = np.cumsum(u, axis=0) - u + (np.cumsum(per_bucket) - per_bucket)[None, :]
+        pairs = int(per_bucket.sum())
         # a pair's step sum is at most (STEP_SCALE + 1) x its edges: int32 up to about 500 k edges
         # between two regions; a list holding a larger sum is int64 (the kernels take either)
         wide_out = int(np.max(to_numpy(largest))) > NARROW_STEPS_MAX
         qa, qb, qw, qs = _pair_list(pairs, like, wide_out)
-        _compact_pairs(rows, size_t, tblock, n, kernel_array(starts.astype(np.int32), np.int32), qa, qb, qw, qs, wide_out)
+        # the offsets are the kernel's cursors: a fresh int32 copy (numpy, written in place on the CPU)
+        _compact_pairs(rows, size_t, tblock, n, shift, kernel_array(starts.astype(np.int32), np.int32),
+                       qa, qb, qw, qs, wide_out)
         out.append((qa, qb, qw, qs, pairs))
     return out
+
+
+def _partition_runs(sizes, capacity: int) -> list:
+    """[(first, end)] runs of consecutive partitions holding items, each with at most ``capacity``
+    items in all (or one partition alone that holds more)."""
+    runs, first, held = [], None, 0
+    for p in np.flatnonzero(sizes):
+        if first is not None and held + int(sizes[p]) > capacity:
+            runs.append((first, end))
+            first = None
+        if first is None:
+            first, held = int(p), 0
+        held += int(sizes[p])
+        end = int(p) + 1
+    if first is not None:
+        runs.append((first, end))
+    return runs
+
+
+def _bucket_shift(n: int) -> int:
+    """log2 of the region ids per bucket of a compacted pair list: at most ID_BUCKETS buckets."""
+    return max(0, int(np.ceil(np.log2(max(n, 1) / ID_BUCKETS))))
 
 
 def _is_int64(a) -> bool:
@@ -801,19 +850,20 @@ def _pair_list(items, like, wide):
     return tuple(output_array(t, (max(items, 1),), like) for t in (ti.i32, ti.i32, ti.i32, ti.i64 if wide else ti.i32))
 
 
-def _gather(chunks, kinds, column, kind, total, like, wide):
-    """The items of one kind from every chunk, in order, as a new chunk of ``total`` items (step
-    sums int64 when ``wide``, else int32)."""
+def _gather(chunks, kinds, columns, kind, total, like, wide):
+    """The items whose kind lies in ``kind`` (first, end) from every chunk, in order, as a new
+    chunk of ``total`` items (step sums int64 when ``wide``, else int32); ``columns`` (first, end):
+    those kinds' columns of the per-block counts."""
     pa, pb, pw, ps = _pair_list(total, like, wide)
     at = 0
     for (ua, ub, uw, us, items), (part, counts, block) in zip(chunks, kinds):
-        per_block = counts[:, column]
+        per_block = counts[:, columns[0]:columns[1]].sum(axis=1)
         if not per_block.any():
-            continue            # no item of this kind in the chunk: no pass over it
+            continue            # no item of these kinds in the chunk: no pass over it
         offsets = np.zeros(len(per_block), np.int64)
         np.cumsum(per_block[:-1], out=offsets[1:])
-        _gather_kind(ua, ub, uw, us, items, part, kind, block, kernel_array((offsets + at).astype(np.int32), np.int32),
-                     pa, pb, pw, ps, wide)
+        _gather_kind(ua, ub, uw, us, items, part, kind[0], kind[1], block,
+                     kernel_array((offsets + at).astype(np.int32), np.int32), pa, pb, pw, ps, wide)
         at += int(per_block.sum())
     return pa, pb, pw, ps, total
 

@@ -179,23 +179,27 @@ def test_region_merging_host_rounds_equal_the_kernel_rounds(seed):
     assert device.n_regions < n / 5
 
 
-# 2^10 / 2^12-slot tables: 32 / 8 partitions of this graph's 18 k edges (2^4-2^8 reach the cap of
-# 128 partitions, whose 129 x 129 gather passes a round made the test take 30-60 s)
+# 2^10 / 2^12-slot tables: runs of the 128 partitions holding at most 716 / 2,867 of this graph's
+# 18 k edges
 @pytest.mark.parametrize("table_bits", [10, 12])
 def test_region_merging_through_partition_tables_is_the_same(monkeypatch, table_bits):
-    """The rounds re-key their pairs one hash partition at a time when one table would exceed
-    2^MAX_TABLE_BITS slots; tiny tables force many partitions (and partitions larger than their
-    share, whose table then grows) and must give the merge of one table and of the host rounds."""
+    """The rounds re-key their pairs one run of hash partitions at a time when one table could
+    exceed 2^MAX_TABLE_BITS slots, as many partitions in a run as the items re-keyed that round
+    fill; tiny tables force many runs (and partitions larger than a table's share, whose table then
+    grows) and must give the merge of one table and of the host rounds."""
     n, a, b, up, down, colour = _merge_case(1, n=3000)
     args = (n, a, b, up, down, colour, (1.5, 3.0, 6.0), 10.0, 0.1, 6)
     whole = regions.merge_regions_by_colour(*args, host=False)
     host = regions.merge_regions_by_colour(*args, host=True)
     monkeypatch.setattr(regions, "MAX_TABLE_BITS", table_bits)
-    calls = []
+    calls, runs = [], []
     real = regions._insert_pairs
     monkeypatch.setattr(regions, "_insert_pairs", lambda *a: (calls.append(a[7]), real(*a))[1])
+    real_runs = regions._partition_runs
+    monkeypatch.setattr(regions, "_partition_runs", lambda *a: (lambda r: (runs.append(len(r)), r)[1])(real_runs(*a)))
     parted = regions.merge_regions_by_colour(*args, host=False)
-    assert max(calls) >= 2 and len(calls) > 20       # part_bits: several partitions per round
+    assert max(calls) >= 2 and len(calls) > 20       # part_bits: partitions
+    assert max(runs) >= 2 and min(runs) <= 1         # several runs in the first rounds, one later
     for other in (whole, host):
         assert np.array_equal(parted.label, other.label)
         assert np.array_equal(parted.count, other.count) and np.array_equal(parted.colour_sum, other.colour_sum)
