@@ -11,27 +11,16 @@ the base has none. Prints medians and the base / new ratio per round.
 """
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 
-from knn_ab import alternating, describe, load_base
+from knn_ab import alternating, base_and_new
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--base", required=True, help="git revision of the base kernels/features.py")
-    ap.add_argument("--points", default="1M,4M")
-    ap.add_argument("--rounds", type=int, default=5)
-    args = ap.parse_args()
-
-    from roadx_ti import backend, synthetic
+    args, base, new = base_and_new(__doc__, "features", "1M,4M", 5)
+    from roadx_ti import synthetic
     from roadx_ti.config import parse_point_count
-    backend.init("cpu")
-    from roadx_ti.kernels import features as new
     from roadx_ti.kernels.neighbors import knn
-    base = load_base(args.base, "features")
-    print(f"features, base {args.base} against {describe()}, {args.rounds} alternating rounds (base, new)")
     print("| points | call | base median | new median | base / new per round | identical |")
     print("|---|---|---:|---:|---|---|")
     for size in args.points.split(","):

@@ -56,20 +56,32 @@ def alternating(call, rounds: int, sides: dict) -> dict:
     return times
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--base", required=True, help="git revision of the base kernels/neighbors.py")
-    ap.add_argument("--points", default="1M,4M")
-    ap.add_argument("--k", type=int, default=16)
-    ap.add_argument("--rounds", type=int, default=5)
-    args = ap.parse_args()
+def base_and_new(doc: str, name: str, points: str, rounds: int, extra=()):
+    """The command line of an A/B script over kernels/NAME.py (--base, --points, --rounds and
+    ``extra`` (flag, keywords) options), Taichi started on the CPU, and (args, base module, this
+    checkout's module); prints the title line."""
+    import importlib
 
-    from roadx_ti import backend, synthetic
-    from roadx_ti.config import parse_point_count
+    ap = argparse.ArgumentParser(description=doc.split("\n")[0])
+    ap.add_argument("--base", required=True, help=f"git revision of the base kernels/{name}.py")
+    ap.add_argument("--points", default=points)
+    ap.add_argument("--rounds", type=int, default=rounds)
+    for flag, options in extra:
+        ap.add_argument(flag, **options)
+    args = ap.parse_args()
+    from roadx_ti import backend
     backend.init("cpu")
-    from roadx_ti.kernels import neighbors as new
-    base = load_base(args.base)
-    print(f"kNN k={args.k}, base {args.base} against {describe()}, {args.rounds} alternating rounds (base, new)")
+    new = importlib.import_module(f"roadx_ti.kernels.{name}")
+    base = load_base(args.base, name)
+    print(f"kernels/{name}.py, base {args.base} against {describe()}, {args.rounds} alternating rounds (base, new)")
+    return args, base, new
+
+
+def main():
+    from roadx_ti import synthetic
+    from roadx_ti.config import parse_point_count
+    args, base, new = base_and_new(__doc__, "neighbors", "1M,4M", 5, [("--k", {"type": int, "default": 16})])
+    print(f"kNN k={args.k}")
     print("| points | base median | new median | base / new per round | identical |")
     print("|---|---:|---:|---|---|")
     for size in args.points.split(","):

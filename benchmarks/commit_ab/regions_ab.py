@@ -11,11 +11,9 @@ per round.
 """
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 
-from knn_ab import REPO, alternating, describe, load_base
+from knn_ab import REPO, alternating, base_and_new
 
 
 def merge_arguments(n_points: int):
@@ -55,19 +53,8 @@ def same_graph(a, b) -> bool:
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--base", required=True, help="git revision of the base kernels/regions.py")
-    ap.add_argument("--points", default="4M")
-    ap.add_argument("--rounds", type=int, default=3)
-    args = ap.parse_args()
-
-    from roadx_ti import backend
+    args, base, new = base_and_new(__doc__, "regions", "4M", 3)
     from roadx_ti.config import parse_point_count
-    backend.init("cpu")
-    from roadx_ti.kernels import regions as new
-    base = load_base(args.base, "regions")
-    print(f"merge_regions_by_colour, base {args.base} against {describe()}, {args.rounds} alternating rounds "
-          "(base, new)")
     print("| points | working points | graph edges | base median | new median | base / new per round | identical |")
     print("|---|---:|---:|---:|---:|---|---|")
     for size in args.points.split(","):
