@@ -90,3 +90,11 @@ def test_a_run_of_one_task_keeps_the_other_tasks_rows(tmp_path):
     assert accuracy.produced_line({"road": {"command": "c", "date": "d"}}) == "Produced by `c` on d."
     earlier.write_text("{ not json")
     assert accuracy.previous_results(earlier) == {} and accuracy.previous_results(tmp_path / "absent.json") == {}
+
+
+def test_the_committed_report_carries_every_note():
+    """benchmarks/accuracy/ACCURACY.md lists accuracy.NOTES (notes added after the last regeneration
+    are added to the file as the report renders them: one '- note' line each)."""
+    text = (REPO / "benchmarks" / "accuracy" / "ACCURACY.md").read_text()
+    missing = [note[:60] for task in accuracy.NOTES for note in accuracy.NOTES[task] if f"- {note}\n" not in text]
+    assert not missing, missing
