@@ -212,15 +212,30 @@ def output_stem(path) -> Path:
     return path.with_suffix("")
 
 
+# pydantic names the member of a union a value failed in its error location (``constrained-float``,
+# ``literal['auto']``, ``float``): not a key of the config
+_UNION_MEMBER_TYPES = {"float", "int", "str", "bool", "none", "list", "tuple", "dict"}
+
+
+def _error_key(loc) -> str:
+    return ".".join(str(p) for p in loc
+                    if isinstance(p, int) or (str(p).isidentifier() and str(p) not in _UNION_MEMBER_TYPES))
+
+
 def _one_line(exc: ValidationError, prefix: str = "") -> str:
-    err = exc.errors()[0]
-    loc = ".".join(str(p) for p in err["loc"])
+    errors = exc.errors()
+    loc = _error_key(errors[0]["loc"])
     key = f"{prefix}.{loc}" if prefix and loc else (prefix or loc)
-    msg = err["msg"]
-    if err["type"] == "extra_forbidden":
-        msg = "unknown key"
-    more = f" (and {len(exc.errors()) - 1} more)" if len(exc.errors()) > 1 else ""
-    return f"config error: {key} = {err.get('input')!r}: {msg}{more}"
+    # a value outside every member of a union: what each member wanted, on one line
+    same = [e for e in errors if _error_key(e["loc"]) == loc]
+    msgs = []
+    for err in same:
+        msg = "unknown key" if err["type"] == "extra_forbidden" else err["msg"]
+        if msg not in msgs:
+            msgs.append(msg)
+    rest = len(errors) - len(same)
+    more = f" (and {rest} more)" if rest else ""
+    return f"config error: {key} = {errors[0].get('input')!r}: {', or '.join(msgs)}{more}"
 
 
 def parse_point_count(text: str) -> int:

@@ -25,8 +25,11 @@ Colour source: RGB (8-bit units), else LiDAR intensity as a grey (scaled to 8-bi
 """
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import numpy as np
-from pydantic import Field
+from pydantic import Field, field_validator
 from scipy.special import ndtr
 
 from roadx_ti.chunks import over_chunks
@@ -93,6 +96,35 @@ class RoadRegionsOptions(StageOptions):
                                        "colours (8-bit units); None: measured")
     weights: dict = Field(default_factory=dict, description="road selection energies, see "
                           "roadx_ti.road_graph.Weights (documented defaults)")
+
+    @field_validator("weights")
+    @classmethod
+    def _known_weights(cls, value: dict) -> dict:
+        # checked with the config, before the input is read: a misspelt key or a word for a number
+        # stopped the run at road_regions with a Python error
+        known = {f.name: f for f in dataclasses.fields(Weights)}
+        out = {}
+        for key, number in value.items():
+            if key not in known:
+                raise ValueError(f"unknown weight {key!r} (known: {', '.join(sorted(known))})")
+            if isinstance(number, bool) or not isinstance(number, (int, float)) or not math.isfinite(number):
+                raise ValueError(f"weight {key!r} must be a finite number, not {number!r}")
+            out[key] = float(number)
+        return out
+
+    @field_validator("colour_levels")
+    @classmethod
+    def _ascending_levels(cls, value: tuple) -> tuple:
+        if not value or any(v <= 0 for v in value) or any(b <= a for a, b in zip(value, value[1:])):
+            raise ValueError(f"colour_levels must be positive and ascending, not {list(value)}")
+        return value
+
+    @field_validator("ensemble")
+    @classmethod
+    def _positive_scales(cls, value: tuple) -> tuple:
+        if any(v <= 0 for v in value):
+            raise ValueError(f"ensemble scales must be positive, not {list(value)}")
+        return value
 
 
 def colour_channels(cloud: Cloud):

@@ -88,7 +88,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field
 from scipy.spatial import cKDTree
@@ -115,6 +115,9 @@ ANNEX_GAP_SPACINGS = 2.0
 # covered completion: at most this share of a point's k neighbours may lie under the roof's plane (a
 # rim's gutter or wall; a roof hides what is under it, a crown's slab has half the crown beneath it)
 COVERED_MAX_BELOW = 0.2
+# m: largest reach of the footprint and annex rules (far beyond any eave, annex or storey; each reach
+# spans reach / cell footprint cells around every point: 1e9 m ran out of memory)
+MAX_REACH = 100.0
 
 
 def default_footprint_cell(ctx: StageContext) -> float:
@@ -159,7 +162,7 @@ class RoofFilterOptions(StageOptions):
     edge_cut: bool = Field(True, description="a segment cut by the edge of the data (tile or "
                            "survey boundary) is as wide as its cut is long: its width across the "
                            "cut is not observed")
-    annex_reach: float = Field(1.0, ge=0, description="a segment dropped only by the area or width "
+    annex_reach: float = Field(1.0, ge=0, le=MAX_REACH, description="a segment dropped only by the area or width "
                                "test is kept when its plan-view cells lie within this distance (m) "
                                "of a kept roof's cells: annexes and garages built against a house "
                                "are building, often under 10 m2 or 3 m wide; 0 = off")
@@ -215,7 +218,7 @@ class RoofFilterOptions(StageOptions):
     attach_min_height: float = Field(1.0, description="only points at least this high above "
                                      "ground (m) join a footprint: low returns beside a wall are "
                                      "mostly ground and low plants the cloth left as non-ground")
-    footprint_cell: float | Literal["auto"] = Field("auto", description="grid cell of the roof "
+    footprint_cell: Annotated[float, Field(gt=0)] | Literal["auto"] = Field("auto", description="grid cell of the roof "
                                                     "footprints (m); 'auto': footprint_spacings x the "
                                                     "survey's measured pulse spacing (1 m without it)")
     footprint_spacings: float = Field(FOOTPRINT_SPACINGS, gt=0, description="footprint_cell 'auto' in measured pulse "
@@ -225,10 +228,10 @@ class RoofFilterOptions(StageOptions):
                                       "by the walls joined, mean kappa 0.876 against 0.897)")
     footprint_min_cell: float = Field(FOOTPRINT_MIN_CELL, gt=0, description="smallest 'auto' footprint cell (m): about "
                                       "the eaves' overhang, the distance of a wall inside its roof's outline")
-    inside_reach: float = Field(3.0, ge=0, description="a point is inside a footprint when roof "
+    inside_reach: float = Field(3.0, ge=0, le=MAX_REACH, description="a point is inside a footprint when roof "
                                 "cells lie this close (m) in all four axis directions; covers "
                                 "holes left by roof units up to about 2 x inside_reach wide")
-    wall_reach: float | Literal["cell"] = Field("cell", description="a point below a roof edge joins "
+    wall_reach: Annotated[float, Field(ge=0, le=MAX_REACH)] | Literal["cell"] = Field("cell", description="a point below a roof edge joins "
                                                 "when a roof cell this close (m) is above it; 'cell': one "
                                                 "footprint cell, the uncertainty of the cells' outline "
                                                 "(walls stand under the eaves, inside the roof's outline: "
@@ -241,7 +244,7 @@ class RoofFilterOptions(StageOptions):
                                             "under the eaves (balconies stand higher); null = every point")
     surface_tol: float = Field(0.5, ge=0, description="a point within this height (m) of its roof "
                                "cell's z range lies on the roof surface and joins whatever its colour")
-    over_roof_reach: float = Field(3.0, ge=0, description="footprint completion: a point more than "
+    over_roof_reach: float = Field(3.0, ge=0, le=MAX_REACH, description="footprint completion: a point more than "
                                    "superstructure_height above the roof points of its footprint cell "
                                    "joins only within this distance (m, 3D) of a roof point: what stands "
                                    "higher than a storey on a roof is another roof level or on one, a "

@@ -31,7 +31,7 @@ com_threshold or NDVI, 2 such a foliage return) for roof_filter's annex and foot
 """
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field
@@ -87,7 +87,7 @@ class RoofGrowingOptions(StageOptions):
                                      "covered, and its orthophoto colour is that of what covers it (a crown "
                                      "over a roof): the colour cue does not keep it off roof_filter's edge "
                                      "completion, whose plane and support tests still decide; 0 = off")
-    covered_cell: float | Literal["auto"] = Field("auto", description="plan cell of the covered test (m); "
+    covered_cell: Annotated[float, Field(gt=0)] | Literal["auto"] = Field("auto", description="plan cell of the covered test (m); "
                                                   "'auto': 3 survey pulse spacings, at least 0.5 m "
                                                   "(roof_filter's footprint cell)")
 
