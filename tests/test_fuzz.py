@@ -250,3 +250,48 @@ def test_a_sample_of_fuzzed_files_through_the_real_cli(fuzz_cases):
             proc = run_cli(*argv, timeout=120)
             _check(case, argv, proc.returncode, proc.stderr, proc.stdout)
         assert _digest(case["path"]) == case["digest"], f"{case['label']}: the input changed"
+
+
+EDGE_VALUES = ("0", "-1", "1e9", "abc")      # --set values every stage option is tried with
+OPTION_SCENE_POINTS = 20_000
+
+
+def _option_calls(folder: Path) -> list[dict]:
+    """One `run` call per option of every stage of the road and roof configs and per EDGE_VALUES
+    value (list-typed options with [] and [0] too), each on a small scene of its pipeline's
+    generator (OPTION_SCENE_POINTS: every stage reaches its rules: roofs are kept, road is chosen)."""
+    from roadx_ti import config, io, synthetic
+    from roadx_ti.stages import stage_class
+
+    calls = []
+    for name, kind in (("road_uav.yaml", "uav-road"), ("roof_als.yaml", "als-roof")):
+        source = folder / f"{kind}.laz"
+        io.write(source, synthetic.generate(kind, OPTION_SCENE_POINTS, seed=1))
+        for stage, _ in config.load(REPO / "configs" / name).stage_list():
+            for option, info in stage_class(stage).Options.model_fields.items():
+                values = EDGE_VALUES + (("[]", "[0]") if "tuple" in str(info.annotation) else ())
+                for value in values:
+                    out = folder / "out" / f"{len(calls):04d}.laz"
+                    # plain strings: the calls go to the driver as JSON
+                    calls.append({"id": len(calls), "label": f"{name} {stage}.{option}={value}", "path": str(source),
+                                  "out": str(out), "argv": ["run", str(REPO / "configs" / name), "--backend", "cpu",
+                                                            "--quiet", "--input", str(source), "--output", str(out),
+                                                            "--set", f"stages.{stage}.{option}={value}",
+                                                            "--set", "output.report_png=false"]})
+    return calls
+
+
+def test_every_stage_option_at_its_edges_through_the_cli_entry_function(tmp_path):
+    """Each option of the road and roof stages set to 0, -1, 1e9 and a word: a run or a one-line
+    refusal (exit 2 from the config check, 1 from the run), never a Python error or a run killed for
+    memory (fuzzing this way found a misspelt road weight stopping the road stage with a TypeError,
+    zero footprint cells and 1e9 m roof reaches)."""
+    calls = _option_calls(tmp_path)
+    assert len(calls) > 500
+    results = _drive(calls)
+    refused = 0
+    for call in calls:
+        r = results[call["id"]]
+        _check(call, call["argv"], r["code"], r["stderr"], r["stdout"], r["raised"])
+        refused += r["code"] != 0
+    assert 0 < refused < len(calls)
