@@ -395,43 +395,44 @@ def case_negative_cloth_resolution(d):
                  message="stages[4].cloth_smooth.cloth_resolution = -1")
 
 
+def _option_refused(d, config, assignment: str, message: str) -> Case:
+    """``--set assignment`` on ``config`` (a file name in configs/): exit 2 with ``message``."""
+    return _run(CONFIGS / config, d, _ground_laz(d), extra=["--set", assignment, "--set", "output.report_png=false"], code=2,
+                message=message)
+
+
 def case_misspelt_road_weight(d):
     """A misspelt road selection weight (road_regions.weights.colr): exit 2 before the input is
     read, the key named and the known ones listed (it was a TypeError at the road stage)."""
-    src = _ground_laz(d)
-    return _demo(d, src, extra=["--set", "stages.road_regions.weights.colr=1"], code=2,
-                 message="stages[5].road_regions.weights = {'colr': 1}: Value error, unknown weight 'colr'")
+    return _option_refused(d, "demo.yaml", "stages.road_regions.weights.colr=1",
+                           "stages[5].road_regions.weights = {'colr': 1}: Value error, unknown weight 'colr'")
 
 
 def case_road_weight_not_a_number(d):
     """road_regions.weights.colour = 'abc': exit 2, the weight named (it was a numpy error)."""
-    src = _ground_laz(d)
-    return _demo(d, src, extra=["--set", "stages.road_regions.weights.colour=abc"], code=2,
-                 message="weight 'colour' must be a finite number, not 'abc'")
+    return _option_refused(d, "demo.yaml", "stages.road_regions.weights.colour=abc",
+                           "weight 'colour' must be a finite number, not 'abc'")
 
 
 def case_colour_levels_descending(d):
     """road_regions.colour_levels [3, 2] (the merge's thresholds must ascend): exit 2."""
-    src = _ground_laz(d)
-    return _demo(d, src, extra=["--set", "stages.road_regions.colour_levels=[3,2]"], code=2,
-                 message="colour_levels must be positive and ascending, not [3.0, 2.0]")
+    return _option_refused(d, "demo.yaml", "stages.road_regions.colour_levels=[3,2]",
+                           "colour_levels must be positive and ascending, not [3.0, 2.0]")
 
 
 def case_roof_reach_beyond_any_building(d):
     """roof_filter.annex_reach = 1e9 m: exit 2 before the input is read (the annex rule spanned
     reach / cell cells around every point and the run was killed for memory)."""
-    src = _ground_laz(d)
-    return _run(CONFIGS / "roof_als.yaml", d, src, extra=["--set", "stages.roof_filter.annex_reach=1e9"], code=2,
-                message="stages[5].roof_filter.annex_reach = '1e9': Input should be less than or equal to 100")
+    return _option_refused(d, "roof_als.yaml", "stages.roof_filter.annex_reach=1e9",
+                           "stages[5].roof_filter.annex_reach = '1e9': Input should be less than or equal to 100")
 
 
 def case_roof_covered_cell_zero(d):
     """roof_growing.covered_cell = 0 (a number or 'auto'): exit 2, both choices named (it was a
     ValueError from the grid)."""
-    src = _ground_laz(d)
-    return _run(CONFIGS / "roof_als.yaml", d, src, extra=["--set", "stages.roof_growing.covered_cell=0"], code=2,
-                message="stages[4].roof_growing.covered_cell = 0: Input should be greater than 0, or Input "
-                        "should be 'auto'")
+    return _option_refused(d, "roof_als.yaml", "stages.roof_growing.covered_cell=0",
+                           "stages[4].roof_growing.covered_cell = 0: Input should be greater than 0, or Input "
+                           "should be 'auto'")
 
 
 def case_k_larger_than_cloud(d):
