@@ -252,8 +252,8 @@ def test_a_sample_of_fuzzed_files_through_the_real_cli(fuzz_cases):
         assert _digest(case["path"]) == case["digest"], f"{case['label']}: the input changed"
 
 
-EDGE_VALUES = ("0", "-1", "1e9", "abc")      # --set values every stage option is tried with
-OPTION_SCENE_POINTS = 20_000
+EDGE_VALUES = ("0", "1e9", "abc")      # --set values every stage option is tried with (negative values: see the docstring)
+OPTION_SCENE_POINTS = 8_000
 
 
 def _option_calls(folder: Path) -> list[dict]:
@@ -282,12 +282,13 @@ def _option_calls(folder: Path) -> list[dict]:
 
 
 def test_every_stage_option_at_its_edges_through_the_cli_entry_function(tmp_path):
-    """Each option of the road and roof stages set to 0, -1, 1e9 and a word: a run or a one-line
+    """Each option of the road and roof stages set to 0, 1e9 and a word: a run or a one-line
     refusal (exit 2 from the config check, 1 from the run), never a Python error or a run killed for
     memory (fuzzing this way found a misspelt road weight stopping the road stage with a TypeError,
-    zero footprint cells and 1e9 m roof reaches)."""
+    zero footprint cells and 1e9 m roof reaches; -1 as well, through the real CLI, found nothing more
+    and is left out for the suite's time)."""
     calls = _option_calls(tmp_path)
-    assert len(calls) > 500
+    assert len(calls) > 400
     results = _drive(calls)
     refused = 0
     for call in calls:
