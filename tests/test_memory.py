@@ -27,8 +27,8 @@ def test_budget_follows_the_limit_and_the_machine(monkeypatch):
     monkeypatch.delenv(memory.LIMIT_VARIABLE, raising=False)
     machine = memory.run_budget()
     assert 0 < machine <= psutil.virtual_memory().total + psutil.Process().memory_info().rss
-    monkeypatch.setenv(memory.LIMIT_VARIABLE, "300M")
-    assert memory.run_budget() == 300 * 2**20
+    monkeypatch.setenv(memory.LIMIT_VARIABLE, "400M")
+    assert memory.run_budget() == 400 * 2**20
     ok, need, budget = memory.fits("road", 10_000_000)
     assert not ok and need > budget
     assert memory.fits("ground", 1000)[0]
