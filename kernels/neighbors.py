@@ -879,7 +879,9 @@ def knn(xyz, k: int, *, grid: Grid = None, cell_size: float = None):
     grid = _prepare(pts, k, grid, cell_size, default_points_per_cell(k))
     out_idx = output_array(ti.i32, (n, k), xyz)
     out_dist = output_array(ti.f32, (n, k), xyz)
-    dummy = ndarray(ti.f32, (1,))
+    # the unused output of the kind the used ones are (numpy or ndarray): the scan kernels then
+    # have one argument signature for knn and knn_mean_distance and compile once per process
+    dummy = output_array(ti.f32, (1,), xyz)
     _run_scan(grid, k, out_idx, out_dist, dummy, True, 0)
     return like_input(out_idx, xyz), like_input(out_dist, xyz)
 
@@ -899,8 +901,8 @@ def knn_mean_distance(xyz, k: int, *, include_self: bool = False, grid: Grid = N
     pts = kernel_array(xyz, np.float32)
     grid = _prepare(pts, others, grid, cell_size, default_points_per_cell(others))
     out_mean = output_array(ti.f32, (n,), xyz)
-    dummy_i = ndarray(ti.i32, (1, 1))
-    dummy_f = ndarray(ti.f32, (1, 1))
+    dummy_i = output_array(ti.i32, (1, 1), xyz)      # of out_mean's kind (see knn)
+    dummy_f = output_array(ti.f32, (1, 1), xyz)
     _run_scan(grid, others, dummy_i, dummy_f, out_mean, False, 1 if include_self else 0)
     return like_input(out_mean, xyz)
 
