@@ -1,4 +1,4 @@
-"""python -m roadx_ti: run | eval | info | synth.
+"""python -m roadx_ti: run | eval | info | synth | bench | accuracy.
 
 Exit codes: 0 ok, 2 usage or config error, 1 data error. User mistakes get one line on stderr,
 never a traceback.
