@@ -475,6 +475,21 @@ NOTES = {
         "45 degrees E2 2.31 -> 3.39 %), the cut's flips under any small change of the input. Corridor surveys"
         " (only the points within 8 m of the road, 1 M seeds 0-2): E1 / E2 0.80 / 1.27, 2.28 / 3.35, 0.69 / "
         "0.80 % against 0.70 / 0.81, 1.80 / 2.45, 0.49 / 0.37 % for the whole scenes.",
+        "Height noise per block as the default, measured and not adopted (2026-12-06, at f2ec330; "
+        "`road_regions.noise_block`, off by default): two uav-road 4 M scenes side by side in one survey "
+        "(seeds 0 and 1, R6 noise 2.3 and 3.9 cm alone; `benchmarks/paper_scale/run.py`'s `build_survey` "
+        "with 8 M points in 2 files) run untiled through the CLI lose street sections with one noise for "
+        "the whole run: E1 / E2 12.08 / 0.48 % (each scene alone about 3.0 and 2.4 % E1); `noise_block: "
+        "40` 4.83 / 0.78 %, 80 m 7.05 / 0.82 %; tiled at 150 m (each tile measures its own window) 6.19 / "
+        "0.50 %. On the matrix with 40 m blocks: 4 M seed 4 E1 4.00 -> 6.71 % (out of bounds), 1 M seed 3 "
+        "2.26 -> 4.63 %, 4 M median E1 1.91 -> 2.07 %, all synthetic 1.65 / 0.63 -> 1.67 / 0.60 %; AHN3 "
+        "6.88 / 1.10 -> 7.83 / 0.67 %; unseen 300 k seeds 60-79 the same 9 out of bounds (each scene one "
+        "or two blocks); with 80 m blocks 4 M seed 4 7.82 %, 1 M seed 7 1.59 -> 4.15 %. Seed 4 (R6 noise "
+        "4.3 cm, one of the noisiest) loses road with any per-block noise: blocks of lawn read rougher "
+        "than blocks of asphalt, so the mode filter's window and the kerb sigma vary with the surface, "
+        "not only with the sensor. A survey whose noise varies along it (flight strips, two missions) is "
+        "the phenomenon left open; a per-block estimate on the smoother surfaces of each block would be "
+        "the next thing to measure.",
         "The seconds column is wall time in process on the shared 2-core machine; the 2026-12-01 run "
         "shared it with two other jobs, so its times are inflated (benchmarks/RESULTS.md has the timed "
         "A/B).",
