@@ -485,13 +485,12 @@ NOTES = {
         "2.26 -> 4.63 %, 4 M median E1 1.91 -> 2.07 %, all synthetic 1.65 / 0.63 -> 1.67 / 0.60 %; AHN3 "
         "6.88 / 1.10 -> 7.83 / 0.67 %; unseen 300 k seeds 60-79 the same 9 out of bounds (each scene one "
         "or two blocks); with 80 m blocks 4 M seed 4 7.82 %, 1 M seed 7 1.59 -> 4.15 %. Seed 4 (R6 noise "
-        "4.3 cm, one of the noisiest) loses road with any per-block noise: blocks of lawn read rougher "
-        "than blocks of asphalt, so the mode filter's window and the kerb sigma vary with the surface, "
-        "not only with the sensor. Blocks measured on their smoother edges instead (each block's 25th "
-        "percentile of |step|, brought to the median's scale by the whole cloud's ratio): the two-scene "
-        "survey 5.00 / 0.73 %, 4 M seed 4 6.71 % again, 1 M seed 3 2.64 %, AHN3 6.19 / 0.68 %: not the "
-        "lawns, then. A survey whose noise varies along it (flight strips, two missions) is the "
-        "phenomenon left open.",
+        "4.3 cm, one of the noisiest) loses road with any per-block noise; why is not established: a "
+        "first guess, that blocks of lawn read rougher than blocks of asphalt, did not hold. Blocks "
+        "measured on their smoother edges instead (each block's 25th percentile of |step|, brought to the "
+        "median's scale by the whole cloud's ratio): the two-scene survey 5.00 / 0.73 %, 4 M seed 4 6.71 "
+        "% again, 1 M seed 3 2.64 %, AHN3 6.19 / 0.68 %. A survey whose noise varies along it (flight "
+        "strips, two missions) is the phenomenon left open.",
         "The seconds column is wall time in process on the shared 2-core machine; the 2026-12-01 run "
         "shared it with two other jobs, so its times are inflated (benchmarks/RESULTS.md has the timed "
         "A/B).",
