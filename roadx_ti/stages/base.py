@@ -19,14 +19,17 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
 from roadx_ti.cloud import Cloud
 
 # ASPRS classes written by the pipelines
+# an option that is a length or size (> 0) or 'auto' (estimated from the survey)
+PositiveOrAuto = Annotated[float, Field(gt=0)] | Literal["auto"]
+
 CLASS_OTHER = 1
 CLASS_GROUND = 2
 CLASS_BUILDING = 6

@@ -96,8 +96,8 @@ from scipy.spatial import cKDTree
 from roadx_ti.cloud import Cloud
 from roadx_ti.segments import segment_covariance, segment_medians
 from roadx_ti.sorted_keys import find
-from roadx_ti.stages.base import (CLASS_BUILDING, CLASS_OTHER, DATA_EDGE, Stage, StageContext, StageOptions,
-                                  StageResult, estimate, spacing_cell, survey_spacing)
+from roadx_ti.stages.base import (CLASS_BUILDING, CLASS_OTHER, DATA_EDGE, PositiveOrAuto, Stage, StageContext,
+                                  StageOptions, StageResult, estimate, spacing_cell, survey_spacing)
 
 # footprint_cell 'auto': FOOTPRINT_SPACINGS survey spacings, at least FOOTPRINT_MIN_CELL (m), and
 # FALLBACK_FOOTPRINT_CELL without a spacing estimate (roof_growing's covered test uses the same cell)
@@ -218,7 +218,7 @@ class RoofFilterOptions(StageOptions):
     attach_min_height: float = Field(1.0, description="only points at least this high above "
                                      "ground (m) join a footprint: low returns beside a wall are "
                                      "mostly ground and low plants the cloth left as non-ground")
-    footprint_cell: Annotated[float, Field(gt=0)] | Literal["auto"] = Field("auto", description="grid cell of the roof "
+    footprint_cell: PositiveOrAuto = Field("auto", description="grid cell of the roof "
                                                     "footprints (m); 'auto': footprint_spacings x the "
                                                     "survey's measured pulse spacing (1 m without it)")
     footprint_spacings: float = Field(FOOTPRINT_SPACINGS, gt=0, description="footprint_cell 'auto' in measured pulse "

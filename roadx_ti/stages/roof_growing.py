@@ -31,8 +31,6 @@ com_threshold or NDVI, 2 such a foliage return) for roof_filter's annex and foot
 """
 from __future__ import annotations
 
-from typing import Annotated, Literal
-
 import numpy as np
 from pydantic import Field
 
@@ -43,7 +41,7 @@ from roadx_ti.kernels.vegetation import DEFAULT_COM_THRESHOLD
 # point_data 'vegetation' bits: the colour cue (COM or NDVI) and the foliage-returns cue
 VEGETATION_BY_COLOUR = 1
 VEGETATION_BY_RETURNS = 2
-from roadx_ti.stages.base import MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
+from roadx_ti.stages.base import MIN_BUFFER, PositiveOrAuto, Stage, StageContext, StageOptions, StageResult
 
 
 class RoofGrowingOptions(StageOptions):
@@ -87,7 +85,7 @@ class RoofGrowingOptions(StageOptions):
                                      "covered, and its orthophoto colour is that of what covers it (a crown "
                                      "over a roof): the colour cue does not keep it off roof_filter's edge "
                                      "completion, whose plane and support tests still decide; 0 = off")
-    covered_cell: Annotated[float, Field(gt=0)] | Literal["auto"] = Field("auto", description="plan cell of the covered test (m); "
+    covered_cell: PositiveOrAuto = Field("auto", description="plan cell of the covered test (m); "
                                                   "'auto': 3 survey pulse spacings, at least 0.5 m "
                                                   "(roof_filter's footprint cell)")
 
