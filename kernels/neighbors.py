@@ -18,7 +18,9 @@ Kernels for k <= SMALL_K:
   cut to its k best by a quickselect whenever it fills (the cut's k-th tightens the bound):
   cheaper than keeping an ordered list, whose insertions branch on every comparison (k 16:
   -5 %, k 32: -13 % against the list, same rows). A query not settled by the 3x3x3 cube adds the second ring's cells
-  within reach; the few still unsettled (outliers, sparse regions) go to ``_knn_blocks``.
+  within reach; one still unsettled with k found (a sparse crown or wall) adds rings 3 and 4 when
+  the cube of one of them holds every point within its k-th bound; the rest (outliers) go to
+  ``_knn_blocks``. Rows are ordered by each pair's rank, counted branch-free.
 * ``_knn_blocks``: one query per thread, keeping an ascending list of the k best, shell by shell over blocks of 4x4x4 cells (64
   consecutive buckets: cheap to skip empty space) or, on GPUs, for every query over single
   cells; blocks beyond the current k-th are skipped, a brute scan ends hopeless searches
@@ -51,6 +53,7 @@ _BRUTE_SHIFT = 26              # brute force: 32 bins cover every finite float
 _BLOCK_BITS = 2                # blocks of 4x4x4 cells: 64 consecutive buckets (grid.cell_hash)
 _BUF = 2 * SMALL_K              # candidate buffer of the cell kernel (i64 slots)
 _CAP_PER_K = 2                 # the buffer is cut to its k best when it holds this many per k
+_CELL_RINGS = 4                # the cell kernel settles queries within this ring (the cube's 9^3 cells)
 _CPU_GRAIN = 64                # iterations a CPU thread takes at a time (dynamic load balance)
 
 
@@ -197,19 +200,25 @@ def _emit_best(best: ti.template(), size: ti.i32, k: ti.i32, qi: ti.i32,
                out_mean: ti.template(), emit_rows: ti.i32):
     """Write the row (ascending (distance, index)) or its mean (summed in that canonical order,
     so every scan order gives the same bits)."""
-    # the list is ordered by (squared distance, index); distances are their float32 square
-    # roots, which may tie where the squares differ: an insertion pass restores (distance,
-    # index) order among such ties
+    # the k hold (squared distance, index) in any order; distances are their float32 square
+    # roots, which may tie where the squares differ: each pair's place in the row is its rank by
+    # (distance, index), counted branch-free (the pairs are distinct: one per point), where an
+    # insertion sort's exits mispredicted once per pair
     for r in range(k):
         dist = ti.sqrt(ti.bit_cast(_key_of(best[r]), ti.f32))
         best[r] = _pack(ti.bit_cast(dist, ti.i32), _idx_of(best[r]))
-    for r in range(1, k):
-        _insert_at(best, r, best[r])
+    ranked = ti.Vector([0] * SMALL_K, ti.i64)
+    for r in range(k):
+        v = best[r]
+        rank = 0
+        for t in range(k):
+            rank += ti.cast(best[t] < v, ti.i32)
+        ranked[rank] = v
     dist_sum = 0.0
     for r in range(k):
-        dist = ti.bit_cast(_key_of(best[r]), ti.f32)
+        dist = ti.bit_cast(_key_of(ranked[r]), ti.f32)
         if emit_rows != 0:
-            out_idx[qi, r] = _idx_of(best[r])
+            out_idx[qi, r] = _idx_of(ranked[r])
             out_dist[qi, r] = dist
         else:
             dist_sum += dist
@@ -419,6 +428,35 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
                 top = mt[1]
                 if m == k and ti.sqrt(ti.bit_cast(top, ti.f32)) < _safe_radius(u, c, 2, cell_size):
                     settled = 1
+                elif m == k:
+                    # sparse neighbourhoods (crowns, walls): the k found bound the k-th; when the
+                    # cube of some ring up to _CELL_RINGS holds every point within that bound, the
+                    # rings between settle the query here (the block search rescans from its own
+                    # block, some thousand points a query)
+                    last = 0
+                    for ring in range(3, _CELL_RINGS + 1):
+                        if last == 0 and ti.sqrt(ti.bit_cast(top, ti.f32)) < _safe_radius(u, c, ring, cell_size):
+                            last = ring
+                    for ring in range(3, last + 1):
+                        for dz in range(-ring, ring + 1):
+                            for dy in range(-ring, ring + 1):
+                                step = 1
+                                if ti.abs(dz) != ring and ti.abs(dy) != ring:
+                                    step = 2 * ring
+                                dx = -ring
+                                while dx <= ring:
+                                    d = ti.math.ivec3(dx, dy, dz)
+                                    if _box_gap_sq(frac, d, margin) <= ti.bit_cast(top, ti.f32) * inv_cell_sq:
+                                        rg = _cell_run(c + d, bstart, scell, mask)
+                                        mt = _append_run(rg[0], rg[1], s, q, buf, m, k, cap, top, order, sxyz)
+                                        m = mt[0]
+                                        top = mt[1]
+                                    dx += step
+                    if last > 0:
+                        mt = _settle_buffer(buf, m, k, top)
+                        m = mt[0]
+                        top = mt[1]
+                        settled = 1
             if m == k:
                 prev_q = q
                 prev_kth = ti.sqrt(ti.bit_cast(top, ti.f32))
