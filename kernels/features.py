@@ -16,43 +16,53 @@ _JACOBI_SWEEPS = 8
 
 
 @ti.func
-def sym_eigen3(a: ti.math.mat3, vectors: ti.template() = True):
-    """Eigen-decomposition of a symmetric 3x3 matrix: (eigenvalues ascending, eigenvectors as
-    columns in the same order). ``vectors`` False skips the eigenvectors (identity returned):
-    the same eigenvalues, bit for bit, from a smaller kernel."""
-    scale = ti.max(ti.abs(a).max(), 1e-30)
-    m = a / scale
-    v = ti.math.mat3([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-    sweep = 0
-    while sweep < _JACOBI_SWEEPS:
-        # converged: the off-diagonal part is below float32 resolution of the diagonal
-        off = ti.abs(m[0, 1]) + ti.abs(m[0, 2]) + ti.abs(m[1, 2])
-        if off <= 1e-9 * (ti.abs(m[0, 0]) + ti.abs(m[1, 1]) + ti.abs(m[2, 2])):
-            break
-        sweep += 1
-        for pair in ti.static(range(3)):
-            p = ti.static((0, 0, 1)[pair])
-            q = ti.static((1, 2, 2)[pair])
-            apq = m[p, q]
-            if ti.abs(apq) > 1e-30:
-                theta = (m[q, q] - m[p, p]) / (2.0 * apq)
-                t = ti.math.sign(theta) / (ti.abs(theta) + ti.sqrt(theta * theta + 1.0))
-                if theta == 0:
-                    t = 1.0
-                c = 1.0 / ti.sqrt(t * t + 1.0)
-                s = t * c
-                rot = ti.math.mat3([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-                rot[p, p] = c
-                rot[q, q] = c
-                rot[p, q] = s
-                rot[q, p] = -s
-                m = rot.transpose() @ m @ rot
-                m[p, q] = 0.0
-                m[q, p] = 0.0
-                if ti.static(vectors):
-                    v = v @ rot
+def _jacobi_converged(m: ti.math.mat3) -> ti.i32:
+    """The off-diagonal part is below float32 resolution of the diagonal."""
+    off = ti.abs(m[0, 1]) + ti.abs(m[0, 2]) + ti.abs(m[1, 2])
+    return ti.cast(off <= 1e-9 * (ti.abs(m[0, 0]) + ti.abs(m[1, 1]) + ti.abs(m[2, 2])), ti.i32)
+
+
+@ti.func
+def _jacobi_rotate(m: ti.math.mat3, v: ti.math.mat3, p: ti.template(), q: ti.template(), vectors: ti.template()):
+    """One Jacobi rotation R zeroing m[p, q] (m scaled to its largest entry): (R^T m R, v R), or
+    (m, v) when m[p, q] is already (numerically) zero. Only rows and columns p and q change:
+    written out, each entry is the same two products and one sum as in the full 3x3 products
+    (their other terms are exact zeros and ones; Taichi's float flags let LLVM drop none of
+    them), at a quarter of the multiplications."""
+    apq = m[p, q]
+    if ti.abs(apq) > 1e-30:
+        theta = (m[q, q] - m[p, p]) / (2.0 * apq)
+        t = ti.math.sign(theta) / (ti.abs(theta) + ti.sqrt(theta * theta + 1.0))
+        if theta == 0:
+            t = 1.0
+        c = 1.0 / ti.sqrt(t * t + 1.0)
+        s = t * c
+        rows = m                     # R^T m: rows p and q
+        for j in ti.static(range(3)):
+            rows[p, j] = c * m[p, j] - s * m[q, j]
+            rows[q, j] = s * m[p, j] + c * m[q, j]
+        m = rows                     # (R^T m) R: columns p and q
+        for i in ti.static(range(3)):
+            rp = rows[i, p]
+            rq = rows[i, q]
+            m[i, p] = rp * c - rq * s
+            m[i, q] = rp * s + rq * c
+        m[p, q] = 0.0
+        m[q, p] = 0.0
+        if ti.static(vectors):
+            for i in ti.static(range(3)):
+                vp = v[i, p]
+                vq = v[i, q]
+                v[i, p] = vp * c - vq * s
+                v[i, q] = vp * s + vq * c
+    return m, v
+
+
+@ti.func
+def _sorted_eigen(m: ti.math.mat3, v: ti.math.mat3, scale: ti.f32, vectors: ti.template()):
+    """The diagonal of a converged m (times ``scale``) ascending, carrying the eigenvector
+    columns (three compare-swaps)."""
     w = ti.math.vec3(m[0, 0], m[1, 1], m[2, 2]) * scale
-    # sort ascending (three compare-swaps), carrying the eigenvector columns
     for pair in ti.static(range(3)):
         i = ti.static((0, 1, 0)[pair])
         j = ti.static((1, 2, 1)[pair])
@@ -66,6 +76,86 @@ def sym_eigen3(a: ti.math.mat3, vectors: ti.template() = True):
                     v[r, i] = v[r, j]
                     v[r, j] = tv
     return w, v
+
+
+@ti.func
+def sym_eigen3(a: ti.math.mat3, vectors: ti.template() = True):
+    """Eigen-decomposition of a symmetric 3x3 matrix: (eigenvalues ascending, eigenvectors as
+    columns in the same order). ``vectors`` False skips the eigenvectors (identity returned):
+    the same eigenvalues, bit for bit, from a smaller kernel."""
+    scale = ti.max(ti.abs(a).max(), 1e-30)
+    m = a / scale
+    v = ti.math.mat3([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    sweep = 0
+    while sweep < _JACOBI_SWEEPS:
+        if _jacobi_converged(m):
+            break
+        sweep += 1
+        for pair in ti.static(range(3)):
+            m, v = _jacobi_rotate(m, v, ti.static((0, 0, 1)[pair]), ti.static((1, 2, 2)[pair]), vectors)
+    return _sorted_eigen(m, v, scale, vectors)
+
+
+@ti.func
+def sym_eigen3_x4(a0: ti.math.mat3, a1: ti.math.mat3, a2: ti.math.mat3, a3: ti.math.mat3):
+    """sym_eigen3 (with vectors) of four matrices in lockstep, bit for bit the same results: one
+    matrix's rotations form a chain of dependent divisions and square roots, so the core idles
+    between them; four independent chains side by side fill those waits. A matrix takes no part
+    in the sweeps after its own convergence test ends it (its sweep count is its own)."""
+    s0 = ti.max(ti.abs(a0).max(), 1e-30)
+    s1 = ti.max(ti.abs(a1).max(), 1e-30)
+    s2 = ti.max(ti.abs(a2).max(), 1e-30)
+    s3 = ti.max(ti.abs(a3).max(), 1e-30)
+    m0 = a0 / s0
+    m1 = a1 / s1
+    m2 = a2 / s2
+    m3 = a3 / s3
+    eye = ti.math.mat3([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    v0 = eye
+    v1 = eye
+    v2 = eye
+    v3 = eye
+    live0 = 1
+    live1 = 1
+    live2 = 1
+    live3 = 1
+    sweep = 0
+    while sweep < _JACOBI_SWEEPS:
+        if live0 and _jacobi_converged(m0):
+            live0 = 0
+        if live1 and _jacobi_converged(m1):
+            live1 = 0
+        if live2 and _jacobi_converged(m2):
+            live2 = 0
+        if live3 and _jacobi_converged(m3):
+            live3 = 0
+        if live0 + live1 + live2 + live3 == 0:
+            break
+        sweep += 1
+        for pair in ti.static(range(3)):
+            p = ti.static((0, 0, 1)[pair])
+            q = ti.static((1, 2, 2)[pair])
+            n0, w0 = _jacobi_rotate(m0, v0, p, q, True)
+            n1, w1 = _jacobi_rotate(m1, v1, p, q, True)
+            n2, w2 = _jacobi_rotate(m2, v2, p, q, True)
+            n3, w3 = _jacobi_rotate(m3, v3, p, q, True)
+            if live0:
+                m0 = n0
+                v0 = w0
+            if live1:
+                m1 = n1
+                v1 = w1
+            if live2:
+                m2 = n2
+                v2 = w2
+            if live3:
+                m3 = n3
+                v3 = w3
+    e0, u0 = _sorted_eigen(m0, v0, s0, True)
+    e1, u1 = _sorted_eigen(m1, v1, s1, True)
+    e2, u2 = _sorted_eigen(m2, v2, s2, True)
+    e3, u3 = _sorted_eigen(m3, v3, s3, True)
+    return e0, u0, e1, u1, e2, u2, e3, u3
 
 
 @ti.func
@@ -107,25 +197,48 @@ def _curvature_of(w: ti.math.vec3) -> ti.f32:
     return out
 
 
+@ti.func
+def _store_features(i: ti.i32, w: ti.math.vec3, v: ti.math.mat3, span: ti.math.vec3, far2: ti.f32,
+                    normal: ti.template(), eigval: ti.template(), curvature: ti.template(),
+                    max_distance: ti.template(), extent: ti.template()):
+    w = ti.max(w, 0.0)                  # rounding can leave a tiny negative l0
+    nrm = ti.math.vec3(v[0, 0], v[1, 0], v[2, 0]).normalized()
+    if nrm[2] < 0:
+        nrm = -nrm
+    for a in ti.static(range(3)):
+        normal[i, a] = nrm[a]
+        eigval[i, a] = w[a]
+        extent[i, a] = span[a]
+    curvature[i] = _curvature_of(w)
+    max_distance[i] = ti.sqrt(far2)
+
+
 @ti.kernel
 def _covariance_features(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.types.ndarray(dtype=ti.i32, ndim=2),
                          normal: ti.types.ndarray(dtype=ti.f32, ndim=2), eigval: ti.types.ndarray(dtype=ti.f32, ndim=2),
                          curvature: ti.types.ndarray(dtype=ti.f32, ndim=1),
                          max_distance: ti.types.ndarray(dtype=ti.f32, ndim=1),
                          extent: ti.types.ndarray(dtype=ti.f32, ndim=2)):
-    for i in range(xyz.shape[0]):
-        cov, span, far2, _centre = _neighbourhood_covariance(xyz, nbr, i)
-        w, v = sym_eigen3(cov)
-        w = ti.max(w, 0.0)                  # rounding can leave a tiny negative l0
-        nrm = ti.math.vec3(v[0, 0], v[1, 0], v[2, 0]).normalized()
-        if nrm[2] < 0:
-            nrm = -nrm
-        for a in ti.static(range(3)):
-            normal[i, a] = nrm[a]
-            eigval[i, a] = w[a]
-            extent[i, a] = span[a]
-        curvature[i] = _curvature_of(w)
-        max_distance[i] = ti.sqrt(far2)
+    # four points an iteration, their eigen-decompositions in lockstep (sym_eigen3_x4); past the
+    # last point a lane repeats it and stores nothing
+    n = xyz.shape[0]
+    for g in range((n + 3) >> 2):
+        i0 = 4 * g
+        i1 = ti.min(i0 + 1, n - 1)
+        i2 = ti.min(i0 + 2, n - 1)
+        i3 = ti.min(i0 + 3, n - 1)
+        c0, span0, far0, _m0 = _neighbourhood_covariance(xyz, nbr, i0)
+        c1, span1, far1, _m1 = _neighbourhood_covariance(xyz, nbr, i1)
+        c2, span2, far2, _m2 = _neighbourhood_covariance(xyz, nbr, i2)
+        c3, span3, far3, _m3 = _neighbourhood_covariance(xyz, nbr, i3)
+        w0, v0, w1, v1, w2, v2, w3, v3 = sym_eigen3_x4(c0, c1, c2, c3)
+        _store_features(i0, w0, v0, span0, far0, normal, eigval, curvature, max_distance, extent)
+        if i0 + 1 < n:
+            _store_features(i1, w1, v1, span1, far1, normal, eigval, curvature, max_distance, extent)
+        if i0 + 2 < n:
+            _store_features(i2, w2, v2, span2, far2, normal, eigval, curvature, max_distance, extent)
+        if i0 + 3 < n:
+            _store_features(i3, w3, v3, span3, far3, normal, eigval, curvature, max_distance, extent)
 
 
 @ti.kernel

@@ -88,3 +88,70 @@ def test_normals_match_open3d_on_real_tiles(ti_arch, shared_data, tile):
     print(f"{tile}: {degenerate.sum()} degenerate, {tied.sum()} tied at the k-th distance, "
           f"{bad.sum()} of {len(xyz)} beyond 1 degree")
     assert bad.sum() == 0
+
+
+def test_lockstep_eigen_equals_single(ti_arch):
+    """covariance_features decomposes four neighbourhoods in lockstep (sym_eigen3_x4): the same
+    bits as sym_eigen3 one matrix at a time, on full-rank, flat, linear, diagonal, repeated-
+    eigenvalue and zero matrices, each lane converging after its own number of sweeps."""
+    from roadx_ti.kernels.taichi_compat import ti
+
+    @ti.kernel
+    def single(cov: ti.types.ndarray(dtype=ti.f32, ndim=3), w: ti.types.ndarray(dtype=ti.f32, ndim=2),
+               v: ti.types.ndarray(dtype=ti.f32, ndim=3)):
+        for i in range(cov.shape[0]):
+            a = ti.math.mat3(0.0)
+            for r, c in ti.static(ti.ndrange(3, 3)):
+                a[r, c] = cov[i, r, c]
+            e, u = features.sym_eigen3(a)
+            for r in ti.static(range(3)):
+                w[i, r] = e[r]
+                for c in ti.static(range(3)):
+                    v[i, r, c] = u[r, c]
+
+    @ti.kernel
+    def lockstep(cov: ti.types.ndarray(dtype=ti.f32, ndim=3), w: ti.types.ndarray(dtype=ti.f32, ndim=2),
+                 v: ti.types.ndarray(dtype=ti.f32, ndim=3)):
+        for g in range(cov.shape[0] >> 2):
+            a0 = ti.math.mat3(0.0)
+            a1 = ti.math.mat3(0.0)
+            a2 = ti.math.mat3(0.0)
+            a3 = ti.math.mat3(0.0)
+            for r, c in ti.static(ti.ndrange(3, 3)):
+                a0[r, c] = cov[4 * g, r, c]
+                a1[r, c] = cov[4 * g + 1, r, c]
+                a2[r, c] = cov[4 * g + 2, r, c]
+                a3[r, c] = cov[4 * g + 3, r, c]
+            e0, u0, e1, u1, e2, u2, e3, u3 = features.sym_eigen3_x4(a0, a1, a2, a3)
+            for r in ti.static(range(3)):
+                w[4 * g, r] = e0[r]
+                w[4 * g + 1, r] = e1[r]
+                w[4 * g + 2, r] = e2[r]
+                w[4 * g + 3, r] = e3[r]
+                for c in ti.static(range(3)):
+                    v[4 * g, r, c] = u0[r, c]
+                    v[4 * g + 1, r, c] = u1[r, c]
+                    v[4 * g + 2, r, c] = u2[r, c]
+                    v[4 * g + 3, r, c] = u3[r, c]
+
+    rng = np.random.default_rng(9)
+    full = rng.normal(size=(400, 3, 3))
+    full = full @ full.transpose(0, 2, 1)
+    flat = rng.normal(size=(200, 3, 2)) @ rng.normal(size=(200, 2, 3))
+    flat = flat @ flat.transpose(0, 2, 1)
+    line = rng.normal(size=(200, 3, 1))
+    line = line @ line.transpose(0, 2, 1)
+    special = np.stack([np.diag([3.0, 1.0, 2.0]), np.eye(3), np.zeros((3, 3)), np.diag([1.0, 1.0, 1e-9])] * 25)
+    cov = np.concatenate([full, flat, line, special])
+    cov = cov * 10.0 ** rng.integers(-4, 3, (len(cov), 1, 1))
+    cov = cov[rng.permutation(len(cov))].astype(np.float32)    # lanes of every kind side by side
+    out = {}
+    for name, kernel in (("single", single), ("lockstep", lockstep)):
+        w, v = np.zeros((len(cov), 3), np.float32), np.zeros((len(cov), 3, 3), np.float32)
+        kernel(cov, w, v)
+        out[name] = (w, v)
+    np.testing.assert_array_equal(out["lockstep"][0], out["single"][0])
+    np.testing.assert_array_equal(out["lockstep"][1], out["single"][1])
+    scale = np.maximum(np.abs(cov).max(axis=(1, 2)), 1e-30)[:, None].astype(np.float64)
+    np.testing.assert_allclose(out["single"][0] / scale, np.linalg.eigvalsh(cov.astype(np.float64)) / scale,
+                               atol=1e-5)
