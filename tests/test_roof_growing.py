@@ -1084,10 +1084,11 @@ def test_superstructure_with_split_pulses_joins_its_roof(ti_arch):
 
 def test_roof_under_a_crown_joins_by_edge_growth(ti_arch):
     """A crown overhangs one corner of a gable roof: the roof points under it carry the crown's
-    orthophoto colour (and most of them are hidden). Covered (overtopped in their plan cell), their
-    colour is not theirs, so edge completion takes them on the roof's plane (roof_growing's
-    covered_clearance); with the test off the colour cue keeps them out. The crown over the roof
-    and the crown beside it stay out either way."""
+    orthophoto colour (and most of them are hidden). With the colour cue in edge completion
+    (roof_growing.edge_colour_cue), covered points (overtopped in their plan cell) are exempt from
+    it, so edge completion takes them on the roof's plane (covered_clearance); with the test off
+    the colour cue keeps them out. Without the cue (the default) the plane test alone decides and
+    takes them too. The crown over the roof and the crown beside it stay out every way."""
     from roadx_ti import estimates
     from roadx_ti.cloud import Cloud
     from roadx_ti.stages.base import ESTIMATES, StageContext
@@ -1112,10 +1113,11 @@ def test_roof_under_a_crown_joins_by_edge_growth(ti_arch):
     cloud = Cloud.from_world(xyz, origin=np.zeros(3), rgb=np.clip(rgb, 0, 255).astype(np.uint16))
     measured = estimates.measure(cloud)
     found = {}
-    for clearance in (0.0, 1.0):
+    for clearance in (0.0, 1.0, None):
         ctx = StageContext(point_data={"height_above_ground": cloud.xyz[:, 2].copy()},
                            facts={ESTIMATES: dict(measured)})
-        for stage in (RoofSeeds(), RoofGrowing({"covered_clearance": clearance}),
+        growing = {} if clearance is None else {"edge_colour_cue": True, "covered_clearance": clearance}
+        for stage in (RoofSeeds(), RoofGrowing(growing),
                       RoofFilter({"attach_footprint": False})):
             result = stage.run(cloud, ctx)
             ctx.point_data.update(result.point_data)
@@ -1127,8 +1129,10 @@ def test_roof_under_a_crown_joins_by_edge_growth(ti_arch):
     # exemption), 0.73 with it (edge growth reaches the rest where the kNN graph still links them)
     assert found[0.0][corner].mean() < 0.6                  # the defect: the crown's colour keeps it out
     assert found[1.0][corner].mean() > found[0.0][corner].mean() + 0.15
+    assert found[None][corner].mean() >= found[1.0][corner].mean() - 0.02
     for crown in (3, 5):                                    # beside the roof, over it
         assert found[1.0][part == crown].mean() < 0.02
+        assert found[None][part == crown].mean() < 0.02
 
 
 def test_data_edge_is_the_outer_boundary_not_a_sampling_gap():

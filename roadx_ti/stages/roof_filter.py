@@ -56,7 +56,8 @@ Needs roof_growing before it (point_data 'roof_segment') and, for the height tes
   when a roof neighbour within edge_reach point spacings carries a plane (its own where it is
   planar, else its nearest planar roof neighbour's) the point lies on within edge_noise x sqrt 2
   x the height noise + edge_tilt x the distance from that plane's origin, at least
-  edge_min_height above the ground, and no vegetation cue keeps it off (colour, and with
+  edge_min_height above the ground, and no vegetation cue keeps it off (with roof_growing's
+  edge_colour_cue colour, and with
   edge_foliage_returns false also foliage returns: point_data 'edge_may_join' / 'edge_may_join_all'
   from roof_growing; eaves split pulses, so by default returns do not keep a rim point off); joined points carry the plane on, so a chain
   of joins stays on one interior plane and does not creep down a wall (edge_rounds rounds). Only

@@ -23,10 +23,10 @@ NIR (use_nir): where the cloud has colour and a NIR field whose values vary (LAS
 too. info 'vegetation_cue' says which cues ran: 'rgb_com', 'ndvi', 'returns' joined by '+', or
 'none'.
 Writes point_data 'roof_segment' (int32, compact ids, -1 = none), 'edge_may_join' (uint8: no
-vegetation cue of this stage, colour or foliage return, and not isolated: the points roof_filter's
-edge completion may add; the colour cue does not count for a covered point, one the highest point
-of its plan cell overtops by more than covered_clearance: its orthophoto colour is that of the
-crown over it, and a roof under a crown is roof), 'edge_may_join_all' (the same without the returns rule) and, with the colour rule or returns on, 'vegetation' (uint8 bits: 1 COM >
+foliage return (and, with edge_colour_cue, no vegetation colour) and not isolated: the points
+roof_filter's edge completion may add; with edge_colour_cue the colour cue does not count for a covered
+point, one the highest point of its plan cell overtops by more than covered_clearance: its
+orthophoto colour is that of the crown over it, and a roof under a crown is roof), 'edge_may_join_all' (the same without the returns rule) and, with the colour rule or returns on, 'vegetation' (uint8 bits: 1 COM >
 com_threshold or NDVI, 2 such a foliage return) for roof_filter's annex and footprint tests.
 """
 from __future__ import annotations
@@ -79,10 +79,16 @@ class RoofGrowingOptions(StageOptions):
                               "returns_exempt_curvature) joins no roof")
     returns_exempt_curvature: float = Field(0.005, gt=0, description="points with curvature below this "
                                             "(unitless) are exempt from the returns rule (roof edges)")
-    covered_clearance: float = Field(1.0, ge=0, description="a point that the highest point of its plan "
-                                     "cell (covered_cell) overtops by more than this (m, at least one cell "
-                                     "edge: a roof of up to 45 degrees rises that much within a cell) is "
-                                     "covered, and its orthophoto colour is that of what covers it (a crown "
+    edge_colour_cue: bool = Field(False, description="the colour cue keeps points off roof_filter's edge "
+                              "completion. Off by default: an orthophoto that is not a true one shows each "
+                              "roof displaced by the building's lean, so a rim's points take the colour of "
+                              "the ground or crown beside it; the completion's plane test (a point on the "
+                              "roof's own plane within the height noise) keeps crowns off without it. "
+                              "Foliage returns and isolation still count (edge_may_join)")
+    covered_clearance: float = Field(1.0, ge=0, description="with edge_colour_cue: a point that the highest point "
+                                     "of its plan cell (covered_cell) overtops by more than this (m, at least "
+                                     "one cell edge: a roof of up to 45 degrees rises that much within a cell) "
+                                     "is covered, and its orthophoto colour is that of what covers it (a crown "
                                      "over a roof): the colour cue does not keep it off roof_filter's edge "
                                      "completion, whose plane and support tests still decide; 0 = off")
     covered_cell: PositiveOrAuto = Field("auto", description="plan cell of the covered test (m); "
@@ -138,10 +144,10 @@ class RoofGrowing(Stage):
         elif o.use_color:
             cue = "LiDAR returns are the vegetation cue" if penetrated is not None else "no vegetation cue"
             ctx.log.warning("roof_growing: the input has no colour; the vegetation colour rule is off (%s)", cue)
-        edge_colour = dict(colour)
+        growth_colour = dict(colour)
         if colour and o.color_exempt_curvature is not None:
             # a planar point is roof surface under foliage (orthophoto colour), not foliage itself
-            edge_colour["vegetation"] = ((np.asarray(colour["vegetation"]) != 0) &
+            growth_colour["vegetation"] = ((np.asarray(colour["vegetation"]) != 0) &
                                          (np.asarray(ctx.point_data["curvature"]) >= o.color_exempt_curvature)
                                          ).astype(np.uint8)
         active = None
@@ -155,7 +161,7 @@ class RoofGrowing(Stage):
             active = ~isolated if active is None else (active != 0) & ~isolated
             active = active.astype(np.uint8)
         edge_ok = roof_growth_edges(knn, ctx.point_data["normal"], angle_max_deg=o.angle_max_deg,
-                                    active=active, **edge_colour)
+                                    active=active, **growth_colour)
         segment = grow_roof_segments(knn, edge_ok, ctx.point_data["roof_seed"],
                                      curvature=ctx.point_data["curvature"],
                                      expand_curvature_max=self._expand_limit(ctx),
@@ -171,8 +177,8 @@ class RoofGrowing(Stage):
             info["vegetation_coloured"] = vegetation_points
         # roof_filter's edge completion: points no vegetation cue or isolation keeps off a roof
         may_join = np.ones(n, bool)
-        if "vegetation" in edge_colour:
-            coloured = np.asarray(edge_colour["vegetation"]) != 0
+        if o.edge_colour_cue and "vegetation" in growth_colour:
+            coloured = np.asarray(growth_colour["vegetation"]) != 0
             if o.covered_clearance > 0 and coloured.any():
                 # the colour of a covered point is its cover's (a crown over a roof)
                 covered = coloured & self._covered(cloud, ctx)
