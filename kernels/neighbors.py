@@ -467,12 +467,6 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
 
 
 @ti.func
-def _centre_out(t: ti.i32) -> ti.i32:
-    """0, -1, 1, -2, 2, ... for t = 0, 1, 2, 3, 4, ...: offsets along an axis, nearest first."""
-    return ((t + 1) >> 1) * (1 - 2 * (t & 1))
-
-
-@ti.func
 def _block_search(q: ti.math.vec3, s: ti.i32, best: ti.template(), k: ti.i32, order: ti.template(),
                   sxyz: ti.template(), scell: ti.template(), bstart: ti.template(), mask: ti.i32,
                   ox: ti.f32, oy: ti.f32, oz: ti.f32, cell_size: ti.f32, inv_cell: ti.f32,
@@ -501,21 +495,14 @@ def _block_search(q: ti.math.vec3, s: ti.i32, best: ti.template(), k: ti.i32, or
             done = 1
         else:
             # the shell of blocks at Chebyshev distance ring: whole faces at dz or dy = +-ring,
-            # otherwise only dx = +-ring; each axis from the query's block outwards (0, -1, 1, -2,
-            # ...), so that the first blocks visited on a face are the nearest: the k found there
-            # bound the k-th, and the face's far blocks are skipped (an outlier over the ground
-            # scanned the whole face below it, corner first, before it could skip any)
-            for tz in range(2 * ring + 1):
-                dz = _centre_out(tz)
-                for ty in range(2 * ring + 1):
-                    dy = _centre_out(ty)
-                    across = 2 * ring + 1
+            # otherwise only dx = +-ring
+            for dz in range(-ring, ring + 1):
+                for dy in range(-ring, ring + 1):
+                    step = 1
                     if ti.abs(dz) != ring and ti.abs(dy) != ring:
-                        across = 2
-                    for tx in range(across):
-                        dx = _centre_out(tx)
-                        if across == 2:
-                            dx = (2 * tx - 1) * ring
+                        step = ti.max(2 * ring, 1)
+                    dx = -ring
+                    while dx <= ring:
                         d = ti.math.ivec3(dx, dy, dz)
                         visit = 1
                         if size == k:
@@ -528,6 +515,7 @@ def _block_search(q: ti.math.vec3, s: ti.i32, best: ti.template(), k: ti.i32, or
                                 if scell[j, 0] >> block_bits == target[0] and scell[j, 1] >> block_bits == target[1] \
                                         and scell[j, 2] >> block_bits == target[2]:
                                     size = _offer_run(j, j + 1, s, q, best, size, k, order, sxyz, ti.math.inf)
+                        dx += step
             if size == k and _kth_distance(best, k) < _safe_radius(u, cb, ring, block_size):
                 done = 1
             else:
