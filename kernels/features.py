@@ -97,68 +97,6 @@ def sym_eigen3(a: ti.math.mat3, vectors: ti.template() = True):
 
 
 @ti.func
-def sym_eigen3_x4(a0: ti.math.mat3, a1: ti.math.mat3, a2: ti.math.mat3, a3: ti.math.mat3):
-    """sym_eigen3 (with vectors) of four matrices in lockstep, bit for bit the same results: one
-    matrix's rotations form a chain of dependent divisions and square roots, so the core idles
-    between them; four independent chains side by side fill those waits. A matrix takes no part
-    in the sweeps after its own convergence test ends it (its sweep count is its own)."""
-    s0 = ti.max(ti.abs(a0).max(), 1e-30)
-    s1 = ti.max(ti.abs(a1).max(), 1e-30)
-    s2 = ti.max(ti.abs(a2).max(), 1e-30)
-    s3 = ti.max(ti.abs(a3).max(), 1e-30)
-    m0 = a0 / s0
-    m1 = a1 / s1
-    m2 = a2 / s2
-    m3 = a3 / s3
-    eye = ti.math.mat3([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-    v0 = eye
-    v1 = eye
-    v2 = eye
-    v3 = eye
-    live0 = 1
-    live1 = 1
-    live2 = 1
-    live3 = 1
-    sweep = 0
-    while sweep < _JACOBI_SWEEPS:
-        if live0 and _jacobi_converged(m0):
-            live0 = 0
-        if live1 and _jacobi_converged(m1):
-            live1 = 0
-        if live2 and _jacobi_converged(m2):
-            live2 = 0
-        if live3 and _jacobi_converged(m3):
-            live3 = 0
-        if live0 + live1 + live2 + live3 == 0:
-            break
-        sweep += 1
-        for pair in ti.static(range(3)):
-            p = ti.static((0, 0, 1)[pair])
-            q = ti.static((1, 2, 2)[pair])
-            n0, w0 = _jacobi_rotate(m0, v0, p, q, True)
-            n1, w1 = _jacobi_rotate(m1, v1, p, q, True)
-            n2, w2 = _jacobi_rotate(m2, v2, p, q, True)
-            n3, w3 = _jacobi_rotate(m3, v3, p, q, True)
-            if live0:
-                m0 = n0
-                v0 = w0
-            if live1:
-                m1 = n1
-                v1 = w1
-            if live2:
-                m2 = n2
-                v2 = w2
-            if live3:
-                m3 = n3
-                v3 = w3
-    e0, u0 = _sorted_eigen(m0, v0, s0, True)
-    e1, u1 = _sorted_eigen(m1, v1, s1, True)
-    e2, u2 = _sorted_eigen(m2, v2, s2, True)
-    e3, u3 = _sorted_eigen(m3, v3, s3, True)
-    return e0, u0, e1, u1, e2, u2, e3, u3
-
-
-@ti.func
 def _neighbourhood_covariance(xyz: ti.template(), nbr: ti.template(), i: ti.i32):
     """Covariance of point i and its neighbours about their centroid (coordinates relative to the
     point), with the per-axis extent of the offsets, the largest squared distance and the
@@ -219,26 +157,10 @@ def _covariance_features(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.ty
                          curvature: ti.types.ndarray(dtype=ti.f32, ndim=1),
                          max_distance: ti.types.ndarray(dtype=ti.f32, ndim=1),
                          extent: ti.types.ndarray(dtype=ti.f32, ndim=2)):
-    # four points an iteration, their eigen-decompositions in lockstep (sym_eigen3_x4); past the
-    # last point a lane repeats it and stores nothing
-    n = xyz.shape[0]
-    for g in range((n + 3) >> 2):
-        i0 = 4 * g
-        i1 = ti.min(i0 + 1, n - 1)
-        i2 = ti.min(i0 + 2, n - 1)
-        i3 = ti.min(i0 + 3, n - 1)
-        c0, span0, far0, _m0 = _neighbourhood_covariance(xyz, nbr, i0)
-        c1, span1, far1, _m1 = _neighbourhood_covariance(xyz, nbr, i1)
-        c2, span2, far2, _m2 = _neighbourhood_covariance(xyz, nbr, i2)
-        c3, span3, far3, _m3 = _neighbourhood_covariance(xyz, nbr, i3)
-        w0, v0, w1, v1, w2, v2, w3, v3 = sym_eigen3_x4(c0, c1, c2, c3)
-        _store_features(i0, w0, v0, span0, far0, normal, eigval, curvature, max_distance, extent)
-        if i0 + 1 < n:
-            _store_features(i1, w1, v1, span1, far1, normal, eigval, curvature, max_distance, extent)
-        if i0 + 2 < n:
-            _store_features(i2, w2, v2, span2, far2, normal, eigval, curvature, max_distance, extent)
-        if i0 + 3 < n:
-            _store_features(i3, w3, v3, span3, far3, normal, eigval, curvature, max_distance, extent)
+    for i in range(xyz.shape[0]):
+        cov, span, far2, _centre = _neighbourhood_covariance(xyz, nbr, i)
+        w, v = sym_eigen3(cov)
+        _store_features(i, w, v, span, far2, normal, eigval, curvature, max_distance, extent)
 
 
 @ti.kernel

@@ -90,49 +90,59 @@ def test_normals_match_open3d_on_real_tiles(ti_arch, shared_data, tile):
     assert bad.sum() == 0
 
 
-def test_lockstep_eigen_equals_single(ti_arch):
-    """covariance_features decomposes four neighbourhoods in lockstep (sym_eigen3_x4): the same
-    bits as sym_eigen3 one matrix at a time, on full-rank, flat, linear, diagonal, repeated-
-    eigenvalue and zero matrices, each lane converging after its own number of sweeps."""
+def test_written_out_rotations_equal_full_products(ti_arch):
+    """sym_eigen3 applies each Jacobi rotation on rows and columns p, q only: the same bits as the
+    full products R^T m R and v R (the dropped terms are exact zeros and ones), on full-rank, flat,
+    linear, diagonal, repeated-eigenvalue and zero matrices over seven decades of scale."""
     from roadx_ti.kernels.taichi_compat import ti
 
+    @ti.func
+    def full_products_eigen(a: ti.math.mat3):
+        scale = ti.max(ti.abs(a).max(), 1e-30)
+        m = a / scale
+        v = ti.math.mat3([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+        sweep = 0
+        while sweep < features._JACOBI_SWEEPS:
+            if features._jacobi_converged(m):
+                break
+            sweep += 1
+            for pair in ti.static(range(3)):
+                p = ti.static((0, 0, 1)[pair])
+                q = ti.static((1, 2, 2)[pair])
+                apq = m[p, q]
+                if ti.abs(apq) > 1e-30:
+                    theta = (m[q, q] - m[p, p]) / (2.0 * apq)
+                    t = ti.math.sign(theta) / (ti.abs(theta) + ti.sqrt(theta * theta + 1.0))
+                    if theta == 0:
+                        t = 1.0
+                    c = 1.0 / ti.sqrt(t * t + 1.0)
+                    s = t * c
+                    rot = ti.math.mat3([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+                    rot[p, p] = c
+                    rot[q, q] = c
+                    rot[p, q] = s
+                    rot[q, p] = -s
+                    m = rot.transpose() @ m @ rot
+                    m[p, q] = 0.0
+                    m[q, p] = 0.0
+                    v = v @ rot
+        return features._sorted_eigen(m, v, scale, True)
+
     @ti.kernel
-    def single(cov: ti.types.ndarray(dtype=ti.f32, ndim=3), w: ti.types.ndarray(dtype=ti.f32, ndim=2),
-               v: ti.types.ndarray(dtype=ti.f32, ndim=3)):
+    def both(cov: ti.types.ndarray(dtype=ti.f32, ndim=3), w: ti.types.ndarray(dtype=ti.f32, ndim=3),
+             v: ti.types.ndarray(dtype=ti.f32, ndim=4)):
         for i in range(cov.shape[0]):
             a = ti.math.mat3(0.0)
             for r, c in ti.static(ti.ndrange(3, 3)):
                 a[r, c] = cov[i, r, c]
-            e, u = features.sym_eigen3(a)
+            e0, u0 = features.sym_eigen3(a)
+            e1, u1 = full_products_eigen(a)
             for r in ti.static(range(3)):
-                w[i, r] = e[r]
+                w[i, 0, r] = e0[r]
+                w[i, 1, r] = e1[r]
                 for c in ti.static(range(3)):
-                    v[i, r, c] = u[r, c]
-
-    @ti.kernel
-    def lockstep(cov: ti.types.ndarray(dtype=ti.f32, ndim=3), w: ti.types.ndarray(dtype=ti.f32, ndim=2),
-                 v: ti.types.ndarray(dtype=ti.f32, ndim=3)):
-        for g in range(cov.shape[0] >> 2):
-            a0 = ti.math.mat3(0.0)
-            a1 = ti.math.mat3(0.0)
-            a2 = ti.math.mat3(0.0)
-            a3 = ti.math.mat3(0.0)
-            for r, c in ti.static(ti.ndrange(3, 3)):
-                a0[r, c] = cov[4 * g, r, c]
-                a1[r, c] = cov[4 * g + 1, r, c]
-                a2[r, c] = cov[4 * g + 2, r, c]
-                a3[r, c] = cov[4 * g + 3, r, c]
-            e0, u0, e1, u1, e2, u2, e3, u3 = features.sym_eigen3_x4(a0, a1, a2, a3)
-            for r in ti.static(range(3)):
-                w[4 * g, r] = e0[r]
-                w[4 * g + 1, r] = e1[r]
-                w[4 * g + 2, r] = e2[r]
-                w[4 * g + 3, r] = e3[r]
-                for c in ti.static(range(3)):
-                    v[4 * g, r, c] = u0[r, c]
-                    v[4 * g + 1, r, c] = u1[r, c]
-                    v[4 * g + 2, r, c] = u2[r, c]
-                    v[4 * g + 3, r, c] = u3[r, c]
+                    v[i, 0, r, c] = u0[r, c]
+                    v[i, 1, r, c] = u1[r, c]
 
     rng = np.random.default_rng(9)
     full = rng.normal(size=(400, 3, 3))
@@ -143,15 +153,10 @@ def test_lockstep_eigen_equals_single(ti_arch):
     line = line @ line.transpose(0, 2, 1)
     special = np.stack([np.diag([3.0, 1.0, 2.0]), np.eye(3), np.zeros((3, 3)), np.diag([1.0, 1.0, 1e-9])] * 25)
     cov = np.concatenate([full, flat, line, special])
-    cov = cov * 10.0 ** rng.integers(-4, 3, (len(cov), 1, 1))
-    cov = cov[rng.permutation(len(cov))].astype(np.float32)    # lanes of every kind side by side
-    out = {}
-    for name, kernel in (("single", single), ("lockstep", lockstep)):
-        w, v = np.zeros((len(cov), 3), np.float32), np.zeros((len(cov), 3, 3), np.float32)
-        kernel(cov, w, v)
-        out[name] = (w, v)
-    np.testing.assert_array_equal(out["lockstep"][0], out["single"][0])
-    np.testing.assert_array_equal(out["lockstep"][1], out["single"][1])
+    cov = (cov * 10.0 ** rng.integers(-4, 3, (len(cov), 1, 1))).astype(np.float32)
+    w, v = np.zeros((len(cov), 2, 3), np.float32), np.zeros((len(cov), 2, 3, 3), np.float32)
+    both(cov, w, v)
+    np.testing.assert_array_equal(w[:, 0], w[:, 1])
+    np.testing.assert_array_equal(v[:, 0], v[:, 1])
     scale = np.maximum(np.abs(cov).max(axis=(1, 2)), 1e-30)[:, None].astype(np.float64)
-    np.testing.assert_allclose(out["single"][0] / scale, np.linalg.eigvalsh(cov.astype(np.float64)) / scale,
-                               atol=1e-5)
+    np.testing.assert_allclose(w[:, 0] / scale, np.linalg.eigvalsh(cov.astype(np.float64)) / scale, atol=1e-5)
