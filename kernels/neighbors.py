@@ -415,48 +415,38 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
             if m == k and ti.sqrt(ti.bit_cast(top, ti.f32)) < _safe_radius(u, c, 1, cell_size):
                 settled = 1
             else:
-                for t in range(125):
-                    d = ti.math.ivec3(t % 5 - 2, (t // 5) % 5 - 2, t // 25 - 2)
-                    if ti.abs(d).max() == 2:
-                        if _box_gap_sq(frac, d, margin) <= ti.bit_cast(top, ti.f32) * inv_cell_sq:
-                            rg = _cell_run(c + d, bstart, scell, mask)
-                            mt = _append_run(rg[0], rg[1], s, q, buf, m, k, cap, top, order, sxyz)
-                            m = mt[0]
-                            top = mt[1]
-                mt = _settle_buffer(buf, m, k, top)
-                m = mt[0]
-                top = mt[1]
-                if m == k and ti.sqrt(ti.bit_cast(top, ti.f32)) < _safe_radius(u, c, 2, cell_size):
-                    settled = 1
-                elif m == k:
-                    # sparse neighbourhoods (crowns, walls): the k found bound the k-th; when the
-                    # cube of some ring up to _CELL_RINGS holds every point within that bound, the
-                    # rings between settle the query here (the block search rescans from its own
-                    # block, some thousand points a query)
-                    last = 0
-                    for ring in range(3, _CELL_RINGS + 1):
-                        if last == 0 and ti.sqrt(ti.bit_cast(top, ti.f32)) < _safe_radius(u, c, ring, cell_size):
-                            last = ring
-                    for ring in range(3, last + 1):
-                        for dz in range(-ring, ring + 1):
-                            for dy in range(-ring, ring + 1):
-                                step = 1
-                                if ti.abs(dz) != ring and ti.abs(dy) != ring:
-                                    step = 2 * ring
-                                dx = -ring
-                                while dx <= ring:
-                                    d = ti.math.ivec3(dx, dy, dz)
-                                    if _box_gap_sq(frac, d, margin) <= ti.bit_cast(top, ti.f32) * inv_cell_sq:
-                                        rg = _cell_run(c + d, bstart, scell, mask)
-                                        mt = _append_run(rg[0], rg[1], s, q, buf, m, k, cap, top, order, sxyz)
-                                        m = mt[0]
-                                        top = mt[1]
-                                    dx += step
-                    if last > 0:
+                # ring 2; then, for a query with k found whose bound the cube of a ring up to
+                # _CELL_RINGS holds (sparse crowns, walls: the block search would rescan from its
+                # own block, some thousand points a query), the rings up to that one. One scan and
+                # one cut in the loop: each call site is another inlined copy for LLVM to compile
+                ring = 2
+                last = 2
+                while ring <= last:
+                    for dz in range(-ring, ring + 1):
+                        for dy in range(-ring, ring + 1):
+                            step = 1
+                            if ti.abs(dz) != ring and ti.abs(dy) != ring:
+                                step = 2 * ring
+                            dx = -ring
+                            while dx <= ring:
+                                d = ti.math.ivec3(dx, dy, dz)
+                                if _box_gap_sq(frac, d, margin) <= ti.bit_cast(top, ti.f32) * inv_cell_sq:
+                                    rg = _cell_run(c + d, bstart, scell, mask)
+                                    mt = _append_run(rg[0], rg[1], s, q, buf, m, k, cap, top, order, sxyz)
+                                    m = mt[0]
+                                    top = mt[1]
+                                dx += step
+                    if ring == last:
                         mt = _settle_buffer(buf, m, k, top)
                         m = mt[0]
                         top = mt[1]
-                        settled = 1
+                        if m == k and ti.sqrt(ti.bit_cast(top, ti.f32)) < _safe_radius(u, c, ring, cell_size):
+                            settled = 1
+                        elif m == k and ring == 2:
+                            for r in range(3, _CELL_RINGS + 1):
+                                if last == 2 and ti.sqrt(ti.bit_cast(top, ti.f32)) < _safe_radius(u, c, r, cell_size):
+                                    last = r
+                    ring += 1
             if m == k:
                 prev_q = q
                 prev_kth = ti.sqrt(ti.bit_cast(top, ti.f32))
