@@ -197,28 +197,36 @@ def _kth_distance(best: ti.template(), k: ti.i32) -> ti.f32:
 @ti.func
 def _emit_best(best: ti.template(), size: ti.i32, k: ti.i32, qi: ti.i32,
                self_slots: ti.i32, out_idx: ti.template(), out_dist: ti.template(),
-               out_mean: ti.template(), emit_rows: ti.i32):
+               out_mean: ti.template(), emit_rows: ti.i32, ranked: ti.template()):
     """Write the row (ascending (distance, index)) or its mean (summed in that canonical order,
     so every scan order gives the same bits)."""
-    # the k hold (squared distance, index) in any order; distances are their float32 square
-    # roots, which may tie where the squares differ: each pair's place in the row is its rank by
-    # (distance, index), counted branch-free (the pairs are distinct: one per point), where an
-    # insertion sort's exits mispredicted once per pair
+    # the k hold (squared distance, index); distances are their float32 square roots, which may
+    # tie where the squares differ: the row is put in (distance, index) order again
     for r in range(k):
         dist = ti.sqrt(ti.bit_cast(_key_of(best[r]), ti.f32))
         best[r] = _pack(ti.bit_cast(dist, ti.i32), _idx_of(best[r]))
-    ranked = ti.Vector([0] * SMALL_K, ti.i64)
-    for r in range(k):
-        v = best[r]
-        rank = 0
-        for t in range(k):
-            rank += ti.cast(best[t] < v, ti.i32)
-        ranked[rank] = v
+    if ti.static(ranked):
+        # in any order (the cell kernel's buffer): each pair's place is its rank, counted
+        # branch-free (the pairs are distinct: one per point), where an insertion sort's exits
+        # mispredicted once per pair
+        row = ti.Vector([0] * SMALL_K, ti.i64)
+        for r in range(k):
+            v = best[r]
+            rank = 0
+            for t in range(k):
+                rank += ti.cast(best[t] < v, ti.i32)
+            row[rank] = v
+        for r in range(k):
+            best[r] = row[r]
+    else:
+        # an ascending list (the block search's): an insertion pass for the few such ties
+        for r in range(1, k):
+            _insert_at(best, r, best[r])
     dist_sum = 0.0
     for r in range(k):
-        dist = ti.bit_cast(_key_of(ranked[r]), ti.f32)
+        dist = ti.bit_cast(_key_of(best[r]), ti.f32)
         if emit_rows != 0:
-            out_idx[qi, r] = _idx_of(ranked[r])
+            out_idx[qi, r] = _idx_of(best[r])
             out_dist[qi, r] = dist
         else:
             dist_sum += dist
@@ -452,7 +460,7 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
                 prev_kth = ti.sqrt(ti.bit_cast(top, ti.f32))
             if settled:
                 # _emit_best orders the k by (distance, index) itself
-                _emit_best(buf, m, k, order[s], self_slots, out_idx, out_dist, out_mean, emit_rows)
+                _emit_best(buf, m, k, order[s], self_slots, out_idx, out_dist, out_mean, emit_rows, True)
             pending[s] = 1 - settled
 
 
@@ -532,7 +540,7 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
         best = ti.Vector([0] * SMALL_K, ti.i64)
         size = _block_search(q, s, best, k, order, sxyz, scell, bstart, mask, ox, oy, oz, cell_size,
                              inv_cell, brute_blocks, block_bits)
-        _emit_best(best, size, k, order[s], self_slots, out_idx, out_dist, out_mean, emit_rows)
+        _emit_best(best, size, k, order[s], self_slots, out_idx, out_dist, out_mean, emit_rows, False)
 
 
 @ti.kernel
