@@ -18,9 +18,8 @@ Kernels for k <= SMALL_K:
   cut to its k best by a quickselect whenever it fills (the cut's k-th tightens the bound):
   cheaper than keeping an ordered list, whose insertions branch on every comparison (k 16:
   -5 %, k 32: -13 % against the list, same rows). A query not settled by the 3x3x3 cube adds the second ring's cells
-  within reach; one still unsettled with k found (a sparse crown or wall) adds rings 3 and 4 when
-  the cube of one of them holds every point within its k-th bound; the rest (outliers) go to
-  ``_knn_blocks``. Rows are ordered by each pair's rank, counted branch-free.
+  within reach; the few still unsettled (outliers, sparse regions) go to ``_knn_blocks``. Rows are
+  ordered by each pair's rank, counted branch-free.
 * ``_knn_blocks``: one query per thread, keeping an ascending list of the k best, shell by shell over blocks of 4x4x4 cells (64
   consecutive buckets: cheap to skip empty space) or, on GPUs, for every query over single
   cells; blocks beyond the current k-th are skipped, a brute scan ends hopeless searches
@@ -53,7 +52,6 @@ _BRUTE_SHIFT = 26              # brute force: 32 bins cover every finite float
 _BLOCK_BITS = 2                # blocks of 4x4x4 cells: 64 consecutive buckets (grid.cell_hash)
 _BUF = 2 * SMALL_K              # candidate buffer of the cell kernel (i64 slots)
 _CAP_PER_K = 2                 # the buffer is cut to its k best when it holds this many per k
-_CELL_RINGS = 4                # the cell kernel settles queries within this ring (the cube's 9^3 cells)
 _CPU_GRAIN = 64                # iterations a CPU thread takes at a time (dynamic load balance)
 
 
@@ -423,38 +421,19 @@ def _knn_cells(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nda
             if m == k and ti.sqrt(ti.bit_cast(top, ti.f32)) < _safe_radius(u, c, 1, cell_size):
                 settled = 1
             else:
-                # ring 2; then, for a query with k found whose bound the cube of a ring up to
-                # _CELL_RINGS holds (sparse crowns, walls: the block search would rescan from its
-                # own block, some thousand points a query), the rings up to that one. One scan and
-                # one cut in the loop: each call site is another inlined copy for LLVM to compile
-                ring = 2
-                last = 2
-                while ring <= last:
-                    for dz in range(-ring, ring + 1):
-                        for dy in range(-ring, ring + 1):
-                            step = 1
-                            if ti.abs(dz) != ring and ti.abs(dy) != ring:
-                                step = 2 * ring
-                            dx = -ring
-                            while dx <= ring:
-                                d = ti.math.ivec3(dx, dy, dz)
-                                if _box_gap_sq(frac, d, margin) <= ti.bit_cast(top, ti.f32) * inv_cell_sq:
-                                    rg = _cell_run(c + d, bstart, scell, mask)
-                                    mt = _append_run(rg[0], rg[1], s, q, buf, m, k, cap, top, order, sxyz)
-                                    m = mt[0]
-                                    top = mt[1]
-                                dx += step
-                    if ring == last:
-                        mt = _settle_buffer(buf, m, k, top)
-                        m = mt[0]
-                        top = mt[1]
-                        if m == k and ti.sqrt(ti.bit_cast(top, ti.f32)) < _safe_radius(u, c, ring, cell_size):
-                            settled = 1
-                        elif m == k and ring == 2:
-                            for r in range(3, _CELL_RINGS + 1):
-                                if last == 2 and ti.sqrt(ti.bit_cast(top, ti.f32)) < _safe_radius(u, c, r, cell_size):
-                                    last = r
-                    ring += 1
+                for t in range(125):
+                    d = ti.math.ivec3(t % 5 - 2, (t // 5) % 5 - 2, t // 25 - 2)
+                    if ti.abs(d).max() == 2:
+                        if _box_gap_sq(frac, d, margin) <= ti.bit_cast(top, ti.f32) * inv_cell_sq:
+                            rg = _cell_run(c + d, bstart, scell, mask)
+                            mt = _append_run(rg[0], rg[1], s, q, buf, m, k, cap, top, order, sxyz)
+                            m = mt[0]
+                            top = mt[1]
+                mt = _settle_buffer(buf, m, k, top)
+                m = mt[0]
+                top = mt[1]
+                if m == k and ti.sqrt(ti.bit_cast(top, ti.f32)) < _safe_radius(u, c, 2, cell_size):
+                    settled = 1
             if m == k:
                 prev_q = q
                 prev_kth = ti.sqrt(ti.bit_cast(top, ti.f32))

@@ -101,30 +101,20 @@ def test_knn_far_outliers_use_fallback(ti_arch):
     np.testing.assert_allclose(m, ref_d[:, 1:].mean(1), rtol=2e-5, atol=1e-5)
 
 
-def test_knn_settles_sparse_queries_within_outer_rings(ti_arch, monkeypatch):
+def test_knn_neighbourhoods_wider_than_the_cell_cube(ti_arch):
     """Cells smaller than the neighbourhoods (the k-th neighbour 2-4 cells away: a crown's or a
-    wall's density against the grid's): the CPU cell kernel settles most such queries in rings 3
-    and 4 (_CELL_RINGS) instead of handing them to the block search; every row exact, and the
-    same bits as with the default cells, rows and means."""
+    wall's density against the grid's): queries the cell kernel's rings 1-2 do not settle go to
+    the block search; every row exact, and the same bits as with the default cells, rows and
+    means."""
     rng = np.random.default_rng(11)
     plane = rng.random((2000, 3)) * [10, 10, 0.05]
     above = rng.random((300, 3)) * [10, 10, 2] + [0, 0, 1]
     xyz = np.concatenate([plane, above]).astype(np.float32)
     cell = 0.2
-    handed_on = []
-    compact = neighbors.compact_mask
-
-    def counting(mask):
-        queries, n = compact(mask)
-        handed_on.append(n)
-        return queries, n
-    monkeypatch.setattr(neighbors, "compact_mask", counting)
     idx, dist = neighbors.knn(xyz, 16, cell_size=cell)
     assert_knn_matches_kdtree(xyz, 16, idx, dist)
     reach = dist[:, -1] / cell
     assert np.mean((reach > 2) & (reach < 4)) > 0.5, np.percentile(reach, [10, 50, 90])
-    if ti_arch == "cpu":     # GPUs run the block search for every query
-        assert handed_on and handed_on[0] < 0.5 * len(xyz), handed_on
     default = neighbors.knn(xyz, 16)
     np.testing.assert_array_equal(idx, default[0])
     np.testing.assert_array_equal(dist, default[1])
