@@ -23,20 +23,27 @@ def _jacobi_converged(m: ti.math.mat3) -> ti.i32:
 
 
 @ti.func
+def jacobi_angle(m: ti.math.mat3, p: ti.template(), q: ti.template()) -> ti.math.vec2:
+    """(cos, sin) of the Jacobi rotation that zeroes m[p, q] (not zero), the smaller of the two angles."""
+    theta = (m[q, q] - m[p, p]) / (2.0 * m[p, q])
+    t = ti.math.sign(theta) / (ti.abs(theta) + ti.sqrt(theta * theta + 1.0))
+    if theta == 0:
+        t = 1.0
+    c = 1.0 / ti.sqrt(t * t + 1.0)
+    return ti.math.vec2(c, t * c)
+
+
+@ti.func
 def _jacobi_rotate(m: ti.math.mat3, v: ti.math.mat3, p: ti.template(), q: ti.template(), vectors: ti.template()):
     """One Jacobi rotation R zeroing m[p, q] (m scaled to its largest entry): (R^T m R, v R), or
     (m, v) when m[p, q] is already (numerically) zero. Only rows and columns p and q change:
     written out, each entry is the same two products and one sum as in the full 3x3 products
     (their other terms are exact zeros and ones; Taichi's float flags let LLVM drop none of
     them), at a quarter of the multiplications."""
-    apq = m[p, q]
-    if ti.abs(apq) > 1e-30:
-        theta = (m[q, q] - m[p, p]) / (2.0 * apq)
-        t = ti.math.sign(theta) / (ti.abs(theta) + ti.sqrt(theta * theta + 1.0))
-        if theta == 0:
-            t = 1.0
-        c = 1.0 / ti.sqrt(t * t + 1.0)
-        s = t * c
+    if ti.abs(m[p, q]) > 1e-30:
+        cs = jacobi_angle(m, p, q)
+        c = cs[0]
+        s = cs[1]
         rows = m                     # R^T m: rows p and q
         for j in ti.static(range(3)):
             rows[p, j] = c * m[p, j] - s * m[q, j]

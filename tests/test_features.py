@@ -109,14 +109,10 @@ def test_written_out_rotations_equal_full_products(ti_arch):
             for pair in ti.static(range(3)):
                 p = ti.static((0, 0, 1)[pair])
                 q = ti.static((1, 2, 2)[pair])
-                apq = m[p, q]
-                if ti.abs(apq) > 1e-30:
-                    theta = (m[q, q] - m[p, p]) / (2.0 * apq)
-                    t = ti.math.sign(theta) / (ti.abs(theta) + ti.sqrt(theta * theta + 1.0))
-                    if theta == 0:
-                        t = 1.0
-                    c = 1.0 / ti.sqrt(t * t + 1.0)
-                    s = t * c
+                if ti.abs(m[p, q]) > 1e-30:
+                    cs = features.jacobi_angle(m, p, q)
+                    c = cs[0]
+                    s = cs[1]
                     rot = ti.math.mat3([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
                     rot[p, p] = c
                     rot[q, q] = c
