@@ -23,7 +23,7 @@ def _jacobi_converged(m: ti.math.mat3) -> ti.i32:
 
 
 @ti.func
-def jacobi_angle(m: ti.math.mat3, p: ti.template(), q: ti.template()) -> ti.math.vec2:
+def _jacobi_angle(m: ti.math.mat3, p: ti.template(), q: ti.template()) -> ti.math.vec2:
     """(cos, sin) of the Jacobi rotation that zeroes m[p, q] (not zero), the smaller of the two angles."""
     theta = (m[q, q] - m[p, p]) / (2.0 * m[p, q])
     t = ti.math.sign(theta) / (ti.abs(theta) + ti.sqrt(theta * theta + 1.0))
@@ -41,7 +41,7 @@ def _jacobi_rotate(m: ti.math.mat3, v: ti.math.mat3, p: ti.template(), q: ti.tem
     (their other terms are exact zeros and ones; Taichi's float flags let LLVM drop none of
     them), at a quarter of the multiplications."""
     if ti.abs(m[p, q]) > 1e-30:
-        cs = jacobi_angle(m, p, q)
+        cs = _jacobi_angle(m, p, q)
         c = cs[0]
         s = cs[1]
         rows = m                     # R^T m: rows p and q
@@ -142,22 +142,6 @@ def _curvature_of(w: ti.math.vec3) -> ti.f32:
     return out
 
 
-@ti.func
-def _store_features(i: ti.i32, w: ti.math.vec3, v: ti.math.mat3, span: ti.math.vec3, far2: ti.f32,
-                    normal: ti.template(), eigval: ti.template(), curvature: ti.template(),
-                    max_distance: ti.template(), extent: ti.template()):
-    w = ti.max(w, 0.0)                  # rounding can leave a tiny negative l0
-    nrm = ti.math.vec3(v[0, 0], v[1, 0], v[2, 0]).normalized()
-    if nrm[2] < 0:
-        nrm = -nrm
-    for a in ti.static(range(3)):
-        normal[i, a] = nrm[a]
-        eigval[i, a] = w[a]
-        extent[i, a] = span[a]
-    curvature[i] = _curvature_of(w)
-    max_distance[i] = ti.sqrt(far2)
-
-
 @ti.kernel
 def _covariance_features(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.types.ndarray(dtype=ti.i32, ndim=2),
                          normal: ti.types.ndarray(dtype=ti.f32, ndim=2), eigval: ti.types.ndarray(dtype=ti.f32, ndim=2),
@@ -167,7 +151,16 @@ def _covariance_features(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), nbr: ti.ty
     for i in range(xyz.shape[0]):
         cov, span, far2, _centre = _neighbourhood_covariance(xyz, nbr, i)
         w, v = sym_eigen3(cov)
-        _store_features(i, w, v, span, far2, normal, eigval, curvature, max_distance, extent)
+        w = ti.max(w, 0.0)                  # rounding can leave a tiny negative l0
+        nrm = ti.math.vec3(v[0, 0], v[1, 0], v[2, 0]).normalized()
+        if nrm[2] < 0:
+            nrm = -nrm
+        for a in ti.static(range(3)):
+            normal[i, a] = nrm[a]
+            eigval[i, a] = w[a]
+            extent[i, a] = span[a]
+        curvature[i] = _curvature_of(w)
+        max_distance[i] = ti.sqrt(far2)
 
 
 @ti.kernel
