@@ -15,6 +15,14 @@ cloud itself:
    its colour: an exact minimum cut over the region graph with kerb terms (a kerb's upper side
    is not road), contrast-sensitive smoothness, and a colour term learnt from the two sides of
    the scene's own clear kerbs.
+Kerb lines (``roadx_ti.kerb_lines``; option ``kerb_lines``, off by default): where the measured
+height noise blurs a common kerb in the filtered heights (2.5 noise sigmas above 10 cm), kerbs
+are also looked for along lines: a step
+filter 0.2 m across and 2 m along a line reads a 9 cm kerb under 4.6 cm of noise at its height
+(per point it is 2 sigmas). Graph edges between paved points that cross a line take its step (the
+larger of the two probabilities), and the regions on the two sides of each confident line (sampled
+past the slivers that lie along it) become a kerb pair of the cut.
+
 3. **Surface test**: road points that stand out above the road's local surface (the median
    slope-corrected height of their nearest road points in plan) by more than a few measured
    height-noise sigmas are not road surface: the lowest parts of parked cars (within the
@@ -46,6 +54,11 @@ TYPICAL_KERB = 0.10
 # above this many working points the kNN rows are not held through the region merge but queried
 # again after it (memory for time: 48 B/pt of rows against about 0.5 s per million points)
 REQUERY_ROWS_ABOVE = 2_000_000
+# m: kerb lines are looked for in the surface less its shape at this scale (roadx_ti.kerb_lines)
+LINE_COARSE = 2.0
+# line cells less likely than this to be a kerb make no region pair (weaker ones, summed along
+# lines, took the road of held-out streets apart, and a lane's verge edges made it a kerbed road)
+LINE_PAIR_MIN_PROBABILITY = 0.5
 
 
 class RoadRegionsOptions(StageOptions):
@@ -91,6 +104,16 @@ class RoadRegionsOptions(StageOptions):
                                       "run: the filter's window and the kerb evidence follow noise that varies "
                                       "across a survey (ACCURACY.md's notes: a noisy scene beside a quiet one "
                                       "lost streets); None: once")
+    kerb_lines: bool = Field(False, description="where the height noise blurs common kerbs in the filtered "
+                             "heights (filter_width x the noise above TYPICAL_KERB, 10 cm), find kerbs along lines "
+                             "too (roadx_ti.kerb_lines): edges that cross a line take its step, and the regions "
+                             "on its two sides become a kerb pair; fully from 10 % above that, not at all 10 % "
+                             "below. Off by default: sidewalks of the road's grey stay off the road behind 8-10 "
+                             "cm kerbs under 4-5 cm of noise, but streets bounded by crossings were lost "
+                             "elsewhere (ACCURACY.md's notes)")
+    line_across: float = Field(0.2, gt=0, description="kerb lines: the step filter's Gaussian across the "
+                               "line (m); a lowered kerb's ramp (about 0.8 m) reads as a step at 0.4")
+    line_along: float = Field(2.0, gt=0, description="kerb lines: its Gaussian along the line (m)")
     height_noise: float | None = Field(None, gt=0, description="height noise (m); None: measured")
     colour_noise: float | None = Field(None, gt=0, description="colour noise of the median-filtered "
                                        "colours (8-bit units); None: measured")
@@ -210,6 +233,63 @@ def above_road_surface(xyz, gradient, is_road, k: int, tolerance: float):
     return out, int(above.sum())
 
 
+@dataclasses.dataclass
+class KerbLines:
+    field: "kerb_lines.StepField"
+    edge_steps: np.ndarray      # float64 per graph edge: the step up from a to b of a line it crosses
+    paved: np.ndarray           # bool per point: neither chromatic nor green
+
+
+def _kerb_lines(xyz, colour_f, ea, eb, spacing: float, o: RoadRegionsOptions, weights: Weights, ctx):
+    """KerbLines of the stage's points on a raster of half the point spacing (None where that raster
+    would not fit: the filtered heights' kerbs alone then). Lines are looked for between paved
+    points (neither chromatic nor green, road_graph's rules): grass and foliage have relief of
+    their own, and colour already parts them from the road."""
+    from roadx_ti import kerb_lines
+    from roadx_ti.memory import dense_limit
+    from roadx_ti.road_graph import chroma_vectors, excess_green
+
+    cell = 0.5 * spacing
+    if kerb_lines.raster_cells(xyz[:, :2], cell, o.line_along) > dense_limit(len(xyz), kerb_lines.FIELD_BYTES_PER_CELL):
+        ctx.log.warning("road_regions: the kerb-line raster would not fit in memory; kerbs from the filtered "
+                        "heights only")
+        return None
+    chroma = np.sqrt((chroma_vectors(colour_f) ** 2).sum(axis=1))
+    paved = (chroma <= weights.max_chroma) & (excess_green(colour_f) < weights.green_from)
+    field = kerb_lines.step_field(xyz[:, :2], xyz[:, 2], cell, o.line_across, o.line_along, LINE_COARSE,
+                                  measure=paved)
+    # steps of half a kerb's smallest height make no kerb evidence (kerb_evidence about 0 there)
+    steps = kerb_lines.edge_line_steps(xyz, ea, eb, field, floor=0.5 * o.kerb_min)
+    return KerbLines(field, np.where(paved[ea] & paved[eb], steps, 0.0), paved)
+
+
+def _add_line_pairs(graph, lines: KerbLines, xyz, ea, eb, density: float, spacing: float, weight: float,
+                    o: RoadRegionsOptions) -> None:
+    """Append to ``graph`` the region pairs across kerb lines (kerb_lines.line_pairs, sampled
+    line_across plus half a spacing from each line) as kerbs in full: their length times the
+    graph edges that cross a metre of line (2 / pi x edge length per m2, for edges of any
+    direction), times ``weight``."""
+    from roadx_ti import kerb_lines
+
+    def probability(steps, spread):
+        return kerb_evidence(steps, spread, o.kerb_min, o.kerb_max, o.kerb_prior)[0]
+    lower, upper, length = kerb_lines.line_pairs(lines.field, xyz, graph.label, o.line_across + 0.5 * spacing,
+                                                 probability, min_probability=LINE_PAIR_MIN_PROBABILITY,
+                                                 eligible=lines.paved)
+    if not len(lower):
+        return
+    edge_length = float(np.linalg.norm(xyz[eb, :2] - xyz[ea, :2], axis=1).sum())
+    per_metre = 2.0 / np.pi * edge_length * max(density, 1e-9) / max(len(xyz), 1)
+    strength = weight * length * per_metre
+    # pairs a < b; up: steps up from a to b
+    flip = lower > upper
+    graph.pa = np.concatenate([graph.pa, np.where(flip, upper, lower).astype(graph.pa.dtype)])
+    graph.pb = np.concatenate([graph.pb, np.where(flip, lower, upper).astype(graph.pb.dtype)])
+    graph.edges = np.concatenate([graph.edges, strength.astype(graph.edges.dtype)])
+    graph.up = np.concatenate([graph.up, np.where(flip, 0.0, strength).astype(graph.up.dtype)])
+    graph.down = np.concatenate([graph.down, np.where(flip, strength, 0.0).astype(graph.down.dtype)])
+
+
 def plan_density(xy: np.ndarray, cell: float = 0.5) -> float:
     """Points per m2 of occupied plan area (cells of ``cell`` metres)."""
     if len(xy) == 0:
@@ -299,13 +379,31 @@ class RoadRegions(Stage):
         edge_sigma = step_sigma if edge_block is None else \
             block_spread(steps, edge_block, step_sigma, MAD_TO_SIGMA).astype(np.float32)
         del edge_block
+        colour_f = regions.neighbourhood_median(colour, neighbours)
+        del colour
+        weights = Weights(**o.weights)
+        # kerbs along lines where the filter blurs them (ACCURACY.md's notes: unseen scenes with
+        # kerbs under 2.5 noise sigmas lost streets or took sidewalks)
+        line_weight = float(np.clip((o.filter_width * height_noise / TYPICAL_KERB - 0.9) / 0.2, 0.0, 1.0)) \
+            if o.kerb_lines else 0.0
+        lines = _kerb_lines(xyz, colour_f, ea, eb, spacing, o, weights, ctx) if line_weight > 0 else None
+        line_spread = lines.field.spread if lines is not None else 0.0
+        line_weight = line_weight if lines is not None else 0.0
+
         # the kerb probabilities per edge, evaluated where the merge needs them (elementwise, so
         # the same values): two full float64 arrays held through its rounds were 400 MB at 16 M
         def evidence(index):
             sigma = edge_sigma if np.ndim(edge_sigma) == 0 else edge_sigma[index]
-            return kerb_evidence(steps[index], sigma, o.kerb_min, o.kerb_max, o.kerb_prior)
-        colour_f = regions.neighbourhood_median(colour, neighbours)
-        del colour
+            up, down = kerb_evidence(steps[index], sigma, o.kerb_min, o.kerb_max, o.kerb_prior)
+            if lines is not None:
+                line_steps = lines.edge_steps[index]
+                on = np.flatnonzero(line_steps)         # the edges that cross a line
+                if len(on):
+                    line_up, line_down = kerb_evidence(line_steps[on], lines.field.spread, o.kerb_min, o.kerb_max,
+                                                       o.kerb_prior)
+                    up[on] = np.maximum(up[on], line_weight * line_up)
+                    down[on] = np.maximum(down[on], line_weight * line_down)
+            return up, down
         if n > REQUERY_ROWS_ABOVE:
             # the rows go before the merge and are queried again after it (the same rows: the
             # query is exact and deterministic): held through its rounds they were 184 MB of the
@@ -315,7 +413,6 @@ class RoadRegions(Stage):
         colour_noise = o.colour_noise or max(MAD_TO_SIGMA * float(np.median(np.abs(grey[eb] - grey[ea]))) / np.sqrt(2.0), 0.5)
         del grey        # what the merge does not read goes before it (its rounds are the stage's peak)
         density = plan_density(xyz[:, :2])
-        weights = Weights(**o.weights)
 
         # one segmentation per scale of the later colour levels (the first level, most of the
         # merge's work, is shared): a point is road when most of their road choices say so
@@ -330,12 +427,14 @@ class RoadRegions(Stage):
         votes = np.zeros(n, np.int32)
         middle = len(scales) // 2
         for number, graph in enumerate(graphs):
+            if lines is not None:
+                _add_line_pairs(graph, lines, xyz, ea, eb, density, spacing, line_weight, o)
             road_region, facts_here = self._choose(graph, xyz, cloud.origin, density, spacing, weights)
             votes += road_region[graph.label]
             if number == middle:
                 segment_label, facts = graph.label, facts_here
         del graphs, graph
-        evidence = steps = None        # (the branches held them)
+        evidence = steps = lines = None        # (the branches held them)
         is_road = 2 * votes > len(scales)
         if len(scales) > 1:
             facts["ensemble_split_points"] = int(((votes > 0) & (votes < len(scales))).sum())
@@ -360,6 +459,9 @@ class RoadRegions(Stage):
         # under 2.5 noise sigmas lost streets or took sidewalks)
         resolved = o.filter_width * height_noise
         estimates["kerbs_resolved_above_m"] = round(float(resolved), 4)
+        estimates["kerb_lines_weight"] = round(line_weight, 3)
+        if line_weight > 0:
+            estimates["kerb_line_spread_m"] = round(line_spread, 4)
         if resolved > TYPICAL_KERB:
             ctx.log.warning("road_regions: height noise %.1f cm: kerbs lower than %.0f cm blur in the filtered "
                             "heights, so sidewalks may join the road or streets be missed (kerbs are commonly "
