@@ -15,14 +15,13 @@ cloud itself:
    its colour: an exact minimum cut over the region graph with kerb terms (a kerb's upper side
    is not road), contrast-sensitive smoothness, and a colour term learnt from the two sides of
    the scene's own clear kerbs.
-Kerb lines (``roadx_ti.kerb_lines``; option ``kerb_lines``, off by default): where the measured
-height noise blurs a common kerb in the filtered heights (2.5 noise sigmas above 10 cm), kerbs
-are also looked for along lines: a step
-filter 0.2 m across and 2 m along a line reads a 9 cm kerb under 4.6 cm of noise at its height
-(per point it is 2 sigmas). Graph edges between paved points that cross a line take its step (the
-larger of the two probabilities), and the regions on the two sides of each confident line (sampled
-past the slivers that lie along it) become a kerb pair of the cut.
-
+   With ``kerb_lines`` (off by default), where the measured height noise blurs a common kerb in
+   the filtered heights (2.5 noise sigmas above 10 cm), kerbs are also looked for along lines
+   (``roadx_ti.kerb_lines``): a step filter 0.2 m across and 2 m along a line reads a 9 cm kerb
+   under 4.6 cm of noise at its height (per point it is 2 sigmas). Graph edges between paved
+   points that cross a line take its step (the larger of the two probabilities), and the regions
+   on the two sides of each confident line (sampled past the slivers that lie along it) become a
+   kerb pair of the cut.
 3. **Surface test**: road points that stand out above the road's local surface (the median
    slope-corrected height of their nearest road points in plan) by more than a few measured
    height-noise sigmas are not road surface: the lowest parts of parked cars (within the
@@ -112,8 +111,9 @@ class RoadRegionsOptions(StageOptions):
                              "cm kerbs under 4-5 cm of noise, but streets bounded by crossings were lost "
                              "elsewhere (ACCURACY.md's notes)")
     line_across: float = Field(0.2, gt=0, description="kerb lines: the step filter's Gaussian across the "
-                               "line (m); a lowered kerb's ramp (about 0.8 m) reads as a step at 0.4")
-    line_along: float = Field(2.0, gt=0, description="kerb lines: its Gaussian along the line (m)")
+                               "line (m)")
+    line_along: float = Field(2.0, gt=0, description="kerb lines: its Gaussian along the line (m); shorter "
+                              "steps read lower: at 1 m the 3 m sides of lowered crossings read as kerbs")
     height_noise: float | None = Field(None, gt=0, description="height noise (m); None: measured")
     colour_noise: float | None = Field(None, gt=0, description="colour noise of the median-filtered "
                                        "colours (8-bit units); None: measured")
