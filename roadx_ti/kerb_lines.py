@@ -26,8 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from roadx_ti.estimates import MAD_TO_SIGMA
+
 SQRT_2PI = float(np.sqrt(2.0 * np.pi))
-MAD_TO_SIGMA = 1.4826
 # bytes per raster cell at the field's peak: float64 sums, counts, heights, responses, the best
 # response and its angle, and a rotated copy (up to twice the cells)
 FIELD_BYTES_PER_CELL = 200
@@ -43,23 +44,28 @@ class StepField:
     spread: float           # m: the filter's own noise (robust sigma)
 
 
+def _frame(xy: np.ndarray, cell: float, along: float):
+    """(corner (2,), shape (H, W), cell indices (n, 2)) of the field's raster over ``xy``: the
+    points' extent with 3 ``along`` of margin (the filter's reach along a line)."""
+    pad = 3.0 * along
+    lo = xy.min(axis=0) - pad
+    ij = np.floor((xy - lo) / cell).astype(np.int64)
+    return lo, tuple(int(v) + 1 + int(np.ceil(pad / cell)) for v in ij.max(axis=0)), ij
+
+
 def raster_cells(xy: np.ndarray, cell: float, along: float) -> int:
-    """Cells of the raster ``step_field`` would make for these points."""
+    """Cells of the raster ``step_field`` makes for these points."""
     if len(xy) == 0:
         return 0
-    span = np.ptp(np.asarray(xy, np.float64), axis=0) + 6.0 * along + 2.0 * cell
-    return int(np.prod(np.ceil(span / cell) + 1))
+    _, shape, _ = _frame(np.asarray(xy, np.float64), cell, along)
+    return shape[0] * shape[1]
 
 
 def step_field(xy: np.ndarray, z: np.ndarray, cell: float, across: float, along: float, coarse: float,
                orientations: int = 12, measure: np.ndarray | None = None) -> StepField:
     """The kerb-line field of points ``xy`` (n, 2) with heights ``z`` (see the module docstring);
     ``measure``: bool per point, the points whose cells the spread is measured on (None: all)."""
-    xy = np.asarray(xy, np.float64)
-    pad = 3.0 * along
-    lo = xy.min(axis=0) - pad
-    ij = np.floor((xy - lo) / cell).astype(np.int64)
-    shape = tuple(int(v) + 1 + int(np.ceil(pad / cell)) for v in ij.max(axis=0))
+    lo, shape, ij = _frame(np.asarray(xy, np.float64), cell, along)
     flat = ij[:, 0] * shape[1] + ij[:, 1]
     size = shape[0] * shape[1]
     total = np.bincount(flat, weights=np.asarray(z, np.float64), minlength=size).reshape(shape)

@@ -132,6 +132,13 @@ def chroma_vectors(mean):
     return mean - mean.mean(axis=1, keepdims=True)
 
 
+def plain_ground(colour, w: Weights) -> np.ndarray:
+    """bool per colour (region means or points' colours, 8-bit units): neither chromatic (chroma
+    up to w.max_chroma) nor green (excess green under w.green_from): asphalt, concrete, setts."""
+    chroma = np.sqrt((chroma_vectors(colour) ** 2).sum(axis=1))
+    return (chroma <= w.max_chroma) & (excess_green(colour) < w.green_from)
+
+
 _FILTER_SIGMA = 2.0                             # cells
 _FILTER_RADIUS = int(4.0 * _FILTER_SIGMA + 0.5)  # gaussian_filter's default truncate (4 sigma)
 
@@ -366,8 +373,7 @@ def kerbless_road(graph, xy, spacing: float, w: Weights = Weights()):
     if n == 0 or len(xy) == 0:
         return road
     mean = graph.mean_colour()
-    chroma = np.sqrt((chroma_vectors(mean) ** 2).sum(axis=1))
-    plain = (chroma <= w.max_chroma) & (excess_green(mean) < w.green_from)
+    plain = plain_ground(mean, w)
     cell = max(2.0 * float(spacing), 0.25)
     xy = np.asarray(xy, np.float64)
     # the raster spans the points less a few strays (real files carry points kilometres away)

@@ -238,37 +238,39 @@ class KerbLines:
     field: "kerb_lines.StepField"
     edge_steps: np.ndarray      # float64 per graph edge: the step up from a to b of a line it crosses
     paved: np.ndarray           # bool per point: neither chromatic nor green
+    edges_per_metre: float      # graph edges that cross a metre of line (2 / pi x edge length per m2,
+                                # for edges of any direction)
 
 
-def _kerb_lines(xyz, colour_f, ea, eb, spacing: float, o: RoadRegionsOptions, weights: Weights, ctx):
+def _kerb_lines(xyz, colour_f, ea, eb, spacing: float, density: float, o: RoadRegionsOptions, weights: Weights,
+                ctx):
     """KerbLines of the stage's points on a raster of half the point spacing (None where that raster
     would not fit: the filtered heights' kerbs alone then). Lines are looked for between paved
     points (neither chromatic nor green, road_graph's rules): grass and foliage have relief of
     their own, and colour already parts them from the road."""
     from roadx_ti import kerb_lines
     from roadx_ti.memory import dense_limit
-    from roadx_ti.road_graph import chroma_vectors, excess_green
+    from roadx_ti.road_graph import plain_ground
 
     cell = 0.5 * spacing
     if kerb_lines.raster_cells(xyz[:, :2], cell, o.line_along) > dense_limit(len(xyz), kerb_lines.FIELD_BYTES_PER_CELL):
         ctx.log.warning("road_regions: the kerb-line raster would not fit in memory; kerbs from the filtered "
                         "heights only")
         return None
-    chroma = np.sqrt((chroma_vectors(colour_f) ** 2).sum(axis=1))
-    paved = (chroma <= weights.max_chroma) & (excess_green(colour_f) < weights.green_from)
+    paved = plain_ground(colour_f, weights)
     field = kerb_lines.step_field(xyz[:, :2], xyz[:, 2], cell, o.line_across, o.line_along, LINE_COARSE,
                                   measure=paved)
     # steps of half a kerb's smallest height make no kerb evidence (kerb_evidence about 0 there)
     steps = kerb_lines.edge_line_steps(xyz, ea, eb, field, floor=0.5 * o.kerb_min)
-    return KerbLines(field, np.where(paved[ea] & paved[eb], steps, 0.0), paved)
+    edge_length = float(np.linalg.norm(xyz[eb, :2] - xyz[ea, :2], axis=1).sum())
+    per_metre = 2.0 / np.pi * edge_length * max(density, 1e-9) / max(len(xyz), 1)
+    return KerbLines(field, np.where(paved[ea] & paved[eb], steps, 0.0), paved, per_metre)
 
 
-def _add_line_pairs(graph, lines: KerbLines, xyz, ea, eb, density: float, spacing: float, weight: float,
-                    o: RoadRegionsOptions) -> None:
+def _add_line_pairs(graph, lines: KerbLines, xyz, spacing: float, weight: float, o: RoadRegionsOptions) -> None:
     """Append to ``graph`` the region pairs across kerb lines (kerb_lines.line_pairs, sampled
     line_across plus half a spacing from each line) as kerbs in full: their length times the
-    graph edges that cross a metre of line (2 / pi x edge length per m2, for edges of any
-    direction), times ``weight``."""
+    graph edges that cross a metre of line, times ``weight``."""
     from roadx_ti import kerb_lines
 
     def probability(steps, spread):
@@ -278,9 +280,7 @@ def _add_line_pairs(graph, lines: KerbLines, xyz, ea, eb, density: float, spacin
                                                  eligible=lines.paved)
     if not len(lower):
         return
-    edge_length = float(np.linalg.norm(xyz[eb, :2] - xyz[ea, :2], axis=1).sum())
-    per_metre = 2.0 / np.pi * edge_length * max(density, 1e-9) / max(len(xyz), 1)
-    strength = weight * length * per_metre
+    strength = weight * length * lines.edges_per_metre
     # pairs a < b; up: steps up from a to b
     flip = lower > upper
     graph.pa = np.concatenate([graph.pa, np.where(flip, upper, lower).astype(graph.pa.dtype)])
@@ -382,11 +382,12 @@ class RoadRegions(Stage):
         colour_f = regions.neighbourhood_median(colour, neighbours)
         del colour
         weights = Weights(**o.weights)
+        density = plan_density(xyz[:, :2])
         # kerbs along lines where the filter blurs them (ACCURACY.md's notes: unseen scenes with
         # kerbs under 2.5 noise sigmas lost streets or took sidewalks)
         line_weight = float(np.clip((o.filter_width * height_noise / TYPICAL_KERB - 0.9) / 0.2, 0.0, 1.0)) \
             if o.kerb_lines else 0.0
-        lines = _kerb_lines(xyz, colour_f, ea, eb, spacing, o, weights, ctx) if line_weight > 0 else None
+        lines = _kerb_lines(xyz, colour_f, ea, eb, spacing, density, o, weights, ctx) if line_weight > 0 else None
         line_spread = lines.field.spread if lines is not None else 0.0
         line_weight = line_weight if lines is not None else 0.0
 
@@ -412,7 +413,6 @@ class RoadRegions(Stage):
         grey = colour_f.mean(axis=1)
         colour_noise = o.colour_noise or max(MAD_TO_SIGMA * float(np.median(np.abs(grey[eb] - grey[ea]))) / np.sqrt(2.0), 0.5)
         del grey        # what the merge does not read goes before it (its rounds are the stage's peak)
-        density = plan_density(xyz[:, :2])
 
         # one segmentation per scale of the later colour levels (the first level, most of the
         # merge's work, is shared): a point is road when most of their road choices say so
@@ -428,7 +428,7 @@ class RoadRegions(Stage):
         middle = len(scales) // 2
         for number, graph in enumerate(graphs):
             if lines is not None:
-                _add_line_pairs(graph, lines, xyz, ea, eb, density, spacing, line_weight, o)
+                _add_line_pairs(graph, lines, xyz, spacing, line_weight, o)
             road_region, facts_here = self._choose(graph, xyz, cloud.origin, density, spacing, weights)
             votes += road_region[graph.label]
             if number == middle:
