@@ -1130,6 +1130,29 @@ NOTES = {
         "0.9963 -> 0.9945 (type II 0.07 -> 0.11 %: a few points), sample_c 0.9200 unchanged; files without "
         "colour do not move. With the cue (`edge_colour_cue: true`, the behaviour before) covered points "
         "stay exempt from it (covered_clearance).",
+        "Curved and angled segments (2026-12-07, on 55c231b; `roof_filter.width_measure`, default bent): "
+        "the width test's covariance width is exact for a straight strip but reads a hedge along a bend "
+        "or round a corner several times its width (the half-density run of "
+        "tests/test_roof_invariance.py's tile grew one curved hedge into a 395-point segment 9.98 m "
+        "\"wide\", 47 % roof). The inscribed width (twice the largest distance from the segment's plan "
+        "footprint, on cells of half its own point spacing, closed over a spacing and with its holes "
+        "filled, to its outline) reads strips 1.75-6 m wide within 0.1-0.3 m at 2-17 points/m2 whatever "
+        "their shape. Taken where it is under 0.6 of the covariance width (a straight strip reads "
+        "0.9-1.0, a disc 1.15): the six IGN tiles, their merged block, AHN3, ign_870000 and the reviewed "
+        "tile at full density, AHN3 and the reviewed tile thinned to 3 points/m2, sample_c and every "
+        "synthetic row of the evaluation script unchanged; the merged IGN block thinned to 3 points/m2 "
+        "0.9065 -> 0.9191; held out (not looked at while choosing): the merged block at 10 / 5 / 2 "
+        "points/m2 0.9214 / 0.9118 / 0.8934 -> 0.9263 / 0.9146 / 0.8948, AHN3 and ign_870000 at those "
+        "densities and synthetic 300 k seeds 10-17 unchanged; in `accuracy --task roof` four of the 40 "
+        "synthetic rows lose 0.0002-0.0013 (1 M seeds 6 / 8 0.9714 / 0.9653 -> 0.9705 / 0.9640, 4 M seeds"
+        " 2 / 6). Not adopted: the inscribed width for every low segment (`inscribed`): the same real "
+        "gains and half-density agreement on 77055_627760 96.22 -> 96.69 %, but small synthetic roofs "
+        "3.0-3.7 m wide read 2.3-2.9 m (their segments lack the rims edge growth adds later; seed 9 "
+        "0.9543 -> 0.9465, 800 k seed 0 0.9779 -> 0.9750); the survey's spacing estimate as the cell "
+        "instead of each segment's own (thinned files: the closing then bridges nothing and every roof "
+        "reads narrow; the reviewed tile thinned 0.9945 -> 0). The tile's half-density agreement stays "
+        "96.22 % (its flips are straight hedge pieces at the area and width thresholds, see the note "
+        "above).",
     ],
 }
 
