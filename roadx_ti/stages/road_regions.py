@@ -41,12 +41,11 @@ from scipy.special import ndtr
 
 from roadx_ti.chunks import over_chunks
 from roadx_ti.cloud import Cloud
+from roadx_ti.estimates import MAD_TO_SIGMA
 from roadx_ti.kernels.regions import MAX_ROW
 from roadx_ti.road_graph import Weights, kerbless_road, label_road
 from roadx_ti.stages.base import CLASS_OTHER, CLASS_ROAD, MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
 
-# robust sigma from a median absolute value (Gaussian): 1.4826 * MAD
-MAD_TO_SIGMA = 1.4826
 # m: a common kerb height (kerbs are commonly 8-16 cm): measured height noise that blurs steps of
 # this height gets a warning
 TYPICAL_KERB = 0.10

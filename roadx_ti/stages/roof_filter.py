@@ -100,6 +100,7 @@ from pydantic import Field
 from scipy.spatial import cKDTree
 
 from roadx_ti.cloud import Cloud
+from roadx_ti.estimates import MAD_TO_SIGMA
 from roadx_ti.segments import segment_covariance, segment_medians
 from roadx_ti.sorted_keys import find
 from roadx_ti.stages.base import (CLASS_BUILDING, CLASS_OTHER, DATA_EDGE, PositiveOrAuto, Stage, StageContext,
@@ -613,7 +614,7 @@ def coordinate_hash(xyz: np.ndarray) -> np.ndarray:
 
 def roof_plane_noise(xyz, knn, segment, normal, curvature, planar_max: float, min_pairs: int = 100,
                      sample: int = NOISE_SAMPLE):
-    """Noise of a point pair on the roofs (m): 1.4826 x the median distance of the same-segment kNN
+    """Noise of a point pair on the roofs (m): MAD_TO_SIGMA x the median distance of the same-segment kNN
     neighbours of planar roof points (curvature < planar_max) to the plane of the point (its
     position and normal), on about ``sample`` of those points drawn by coordinate_hash. None with
     fewer than ``min_pairs`` such pairs. float64 arithmetic."""
@@ -633,7 +634,7 @@ def roof_plane_noise(xyz, knn, segment, normal, curvature, planar_max: float, mi
         return None
     pts = np.asarray(xyz, np.float64)
     off = np.abs(((pts[b] - pts[a]) * np.asarray(normal, np.float64)[a]).sum(axis=1))
-    return 1.4826 * float(np.median(off))
+    return MAD_TO_SIGMA * float(np.median(off))
 
 
 class RoofFilter(Stage):
