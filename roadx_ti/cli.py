@@ -153,6 +153,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"roadx_ti: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except (InputError, DataError) as exc:
+        if _RECEIVED:          # a signal raised inside a compressor's write, which took it for a failed write
+            return _stopped_by(_RECEIVED[0])
         print(f"roadx_ti: {exc}", file=sys.stderr)
         return EXIT_DATA
     except BrokenPipeError:
@@ -170,9 +172,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_DATA
     except Exception as exc:   # a case nobody foresaw: one line (ROADX_TI_TRACEBACK=1 shows where)
         if _RECEIVED:          # a signal raised inside a library callback, which wrapped it
-            number = _RECEIVED[0]
-            print(f"roadx_ti: stopped by {Terminated(number).name}; no partial output was left", file=sys.stderr)
-            return 128 + number
+            return _stopped_by(_RECEIVED[0])
         if os.environ.get("ROADX_TI_TRACEBACK"):
             raise
         text = " ".join(str(exc).split())[:300] or "(no message)"
@@ -184,6 +184,11 @@ def main(argv: list[str] | None = None) -> int:
 
 
 _RECEIVED: list = []     # termination signals received during this main()
+
+
+def _stopped_by(number: int) -> int:
+    print(f"roadx_ti: stopped by {Terminated(number).name}; no partial output was left", file=sys.stderr)
+    return 128 + number
 
 
 class Terminated(BaseException):
@@ -240,6 +245,14 @@ def _output_paths(out: Path) -> dict:
 
 
 def cmd_run(args) -> int:
+    from roadx_ti.io.atomic import output_group
+
+    # the run's outputs (cloud, summary, config, DTM, picture) replace earlier ones together or not at all
+    with output_group():
+        return _cmd_run(args)
+
+
+def _cmd_run(args) -> int:
     from roadx_ti import backend, config, io, pipelines
     from roadx_ti.stages.base import GROUND_SURFACE, StageContext
 
@@ -345,6 +358,8 @@ def cmd_run(args) -> int:
         "estimates": result.estimates,
         "stages": result.stages,
     }
+    if result.repeated:
+        summary["repeated_points"] = result.repeated     # records at another's x, y, z: its labels
     if not factors.metric:
         summary["units"] = {"input": factors.name, "metres_per_unit": {"horizontal": factors.horizontal,
                                                                         "vertical": factors.vertical},
@@ -387,6 +402,10 @@ def _survey_units(cloud, crs):
         raise DataError(f"{cloud.source}: coordinates are longitude / latitude degrees ({crs.to_string()}); "
                         "the stages' lengths are metres: reproject it to a projected CRS first, e.g. pdal "
                         "translate IN OUT reprojection --filters.reprojection.out_srs=EPSG:<UTM zone>")
+    if crs is None and units.looks_like_degrees(cloud):
+        log.warning("%s: no CRS in the file, and x / y read as longitude / latitude degrees (the stages' lengths "
+                    "are metres: every spacing would read 0); if so, reproject it to a projected CRS first",
+                    cloud.source)
     factors = units.metre_factors(crs)
     if not factors.metric:
         log.info("%s counts in %s (%.10g m; heights %.10g m per unit): the stages run in metres, the "

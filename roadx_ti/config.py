@@ -245,9 +245,12 @@ def parse_point_count(text: str) -> int:
     t = text.strip().lower()
     scale = {"k": 1_000, "m": 1_000_000}.get(t[-1:], 1)
     try:
-        value = int(float(t[:-1] if scale != 1 else t) * scale)
+        exact = float(t[:-1] if scale != 1 else t) * scale
+        value = int(exact)
     except (ValueError, OverflowError):     # OverflowError: inf, 1e400
         raise argparse.ArgumentTypeError(f"not a point count: {text!r}") from None
+    if exact != value:                       # 1.5 points: a whole number is meant, say which text
+        raise argparse.ArgumentTypeError(f"a point count is a whole number, got {text!r}")
     if value <= 0:
         raise argparse.ArgumentTypeError(f"point count must be > 0, got {text!r}")
     return value

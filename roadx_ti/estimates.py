@@ -14,6 +14,11 @@ tile), logged, and written to the summary JSON:
   whose neighbourhoods are among the flatter half (1.4826 x median absolute difference /
   sqrt 2): the noise of one point on a smooth surface;
 - ``colour_noise``: the same for grey levels (8-bit units) where the input has colour;
+- ``distinct_points`` / ``distinct_density_per_m2`` (only where records repeat another's x, y
+  and z: merged deliveries, a file written twice into one): the points at distinct positions; the
+  neighbour statistics above are measured over those (a duplicate's nearest neighbour is its twin
+  at 0 m, which made spacing, noise and colour noise 0); from a sample, the copies per position
+  are estimated from the twins drawn together (``copies_per_position``);
 - ``terrain_grade``: median grade of the terrain (rise over run), from the lowest sample point of
   each TERRAIN_CELL plan cell (bar the lowest 1 %: low noise) lowered to its 5 x 5 cells' lowest
   (buildings and crowns that fill cells do not raise it): the plan gradient between cells and
@@ -66,6 +71,15 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
         return out
     pick = uniform_sample(n, sample_points, seed)
     xyz = np.ascontiguousarray(cloud.xyz[pick])
+    first = distinct_rows(xyz)
+    if len(first) < len(xyz):
+        copies = copies_per_position(len(xyz), len(first), len(xyz) / total)
+        total = max(int(round(total / copies)), len(first))
+        out.update({"distinct_points": total, "copies_per_position": round(copies, 3),
+                    "distinct_density_per_m2": round(total / area, 3) if area else 0.0})
+        pick, xyz = pick[first], np.ascontiguousarray(xyz[first])
+        if len(xyz) < 8:
+            return out
     k = min(8, len(xyz) - 1)
     idx, dist = knn(xyz, k)
     # plan spacing of the full cloud: a sample of fraction f is 1/sqrt(f) sparser
@@ -90,6 +104,36 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
         out["colour_noise"] = round(float(MAD_TO_SIGMA * np.median(np.abs(grey[b] - grey[a])) / np.sqrt(2.0)), 3)
     log.info("survey estimates: %s", out)
     return out
+
+
+def distinct_rows(xyz: np.ndarray) -> np.ndarray:
+    """Ascending indices of the first of the rows of ``xyz`` with each (x, y, z)."""
+    rows = np.ascontiguousarray(xyz)
+    keys = rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()
+    return np.sort(np.unique(keys, return_index=True)[1])
+
+
+def copies_per_position(drawn: int, distinct: int, fraction: float) -> float:
+    """Records per distinct position m of a cloud from a uniform draw of ``fraction`` of its records
+    (each kept with that probability) holding ``drawn`` records at ``distinct`` positions: a position
+    with m copies is drawn at least once with probability 1 - (1 - f)^m, so distinct / drawn =
+    (1 - (1 - f)^m) / (m f), solved for m (m = drawn / distinct when the draw is the whole cloud)."""
+    if distinct >= drawn or drawn == 0:
+        return 1.0
+    f = min(max(fraction, 1e-12), 1.0)
+    if f >= 1.0:
+        return drawn / distinct
+    ratio = distinct / drawn
+
+    def seen(m):
+        return (1.0 - (1.0 - f) ** m) / (m * f)
+    lo, hi = 1.0, 2.0
+    while seen(hi) > ratio and hi < 1e6:
+        hi *= 2.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if seen(mid) > ratio else (lo, mid)
+    return 0.5 * (lo + hi)
 
 
 def _neighbour_steps(xyz: np.ndarray, idx: np.ndarray) -> np.ndarray:

@@ -36,13 +36,23 @@ class PipelineResult:
     classification: np.ndarray        # uint8 per input point
     decided_by: np.ndarray            # uint8 per input point: 0 = reached the end, i = stage i removed it
     segment_id: np.ndarray            # int32 per input point, -1 for none
-    processed: np.ndarray             # bool per input point: not skipped by downsampling
+    processed: np.ndarray             # bool per input point: not skipped by downsampling (nor a repeat)
     stages: list = field(default_factory=list)   # per-stage summary rows
     seconds: float = 0.0
     estimates: dict = field(default_factory=dict)   # survey-wide estimates the stages used
     # per input point, the point data the stages declare in Stage.writes (float32, NaN where the
     # stage did not see the point), for the output's extra dimensions
     extra_dims: dict = field(default_factory=dict)
+    repeated: int = 0                 # records at the x, y, z of an earlier one: they take its labels
+
+
+def repeated_positions(xyz: np.ndarray) -> np.ndarray:
+    """bool per point of ``xyz`` in canonical order (roadx_ti.ordering: equal x, y, z lie next to
+    each other): its x, y and z are those of the point before it."""
+    out = np.zeros(len(xyz), bool)
+    if len(xyz) > 1:
+        out[1:] = (xyz[1:] == xyz[:-1]).all(axis=1)
+    return out
 
 
 def build_stages(stage_specs):
@@ -99,10 +109,14 @@ def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class
     # every run starts on all of its points (a context handed to a second run keeps its estimates,
     # not the share an earlier run's downsampling kept)
     ctx.facts.pop(SAMPLED_SHARE, None)
+    # records repeating a point's x, y and z (merged deliveries, a strip written twice) would be each
+    # other's nearest neighbour at 0 m in every stage and in the estimates: they stay out and take
+    # their first's labels at the end, as points skipped by downsampling do
+    repeated = repeated_positions(whole.xyz)
     if ESTIMATES not in ctx.facts:
         # measured on the whole input before any stage (a tiled run hands in the survey's)
         from roadx_ti.estimates import measure
-        ctx.facts[ESTIMATES] = measure(whole)
+        ctx.facts[ESTIMATES] = measure(whole if not repeated.any() else whole.subset(np.flatnonzero(~repeated)))
     if any(getattr(stage, "uses_data_edge", False) for stage in stages):
         # the edge of this run's points (a tile's own window), not the survey's
         from roadx_ti.footprint import data_edge
@@ -113,6 +127,10 @@ def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class
     segment_id = None            # made when a stage first segments (after the road stage's peak)
     processed = np.ones(n, bool)
     working = np.arange(n, dtype=np.int32 if n < 2**31 else np.int64)
+    if repeated.any():
+        processed &= ~repeated
+        working = working[~repeated]
+        log.info("%d records repeat the x, y, z of another; they take its labels", int(repeated.sum()))
     extra_dims = {}
     rows = []
     t_start = time.perf_counter()
@@ -178,7 +196,8 @@ def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class
         _transfer_labels(lambda index: np.take(cloud.xyz, index if order is None else order[index], axis=0),
                          processed, classification, decided_by, segment_id)
     return PipelineResult(classification, decided_by, segment_id, processed, rows,
-                          time.perf_counter() - t_start, dict(ctx.facts[ESTIMATES]), extra_dims)
+                          time.perf_counter() - t_start, dict(ctx.facts[ESTIMATES]), extra_dims,
+                          int(repeated.sum()))
 
 
 # label transfer measures height differences this many times over: at a kerb (8-16 cm, about one

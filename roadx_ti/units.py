@@ -68,6 +68,19 @@ def is_degrees(crs, cloud) -> bool:
     return bool(np.all(np.abs(world[:, 0]) <= 360.0) and np.all(np.abs(world[:, 1]) <= 90.0))
 
 
+def looks_like_degrees(cloud) -> bool:
+    """True for a cloud with no CRS whose x and y read as longitude / latitude: all within
+    +-180 / +-90, spanning under half a unit in plan (55 km in degrees, 0.5 m in metres) while its
+    heights span 20 times more (a street or a roof in metres spans more than 0.5 m)."""
+    if cloud.n < 2:
+        return False
+    world = cloud.xyz[:, :2].astype(np.float64) + cloud.origin[:2]
+    if not (np.all(np.abs(world[:, 0]) <= 180.0) and np.all(np.abs(world[:, 1]) <= 90.0)):
+        return False
+    plan = float(np.ptp(world, axis=0).max())
+    return 0 < plan < 0.5 and float(np.ptp(cloud.xyz[:, 2])) > 20 * plan
+
+
 def in_metres(cloud, factors: Factors):
     """``cloud`` with coordinates and origin in metres (a new Cloud sharing every other array;
     the same cloud when the factors are metres)."""

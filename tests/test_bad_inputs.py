@@ -822,6 +822,55 @@ def case_feet_survey_in_tiles(d):
     return _tiny(d, src, code=2, extra=["--tile-size", "30"], message="tiled runs work in the files' units")
 
 
+def case_longitude_latitude_without_a_crs(d):
+    """Degrees in a file that names no CRS (the degrees check above needs one): the run goes on
+    (it cannot know), with a warning naming the likely degrees and the reprojection."""
+    xyz = bumpy_ground(800)
+    xyz[:, 0] = 2.35 + (xyz[:, 0] - xyz[:, 0].min()) * 1e-5
+    xyz[:, 1] = 48.85 + (xyz[:, 1] - xyz[:, 1].min()) * 1e-5
+    src = write_las(d / "in" / "lonlat_nocrs.las", xyz, scale=1e-7)
+    return _tiny(d, src, code=0, warning="read as longitude / latitude degrees", check=lambda c: None)
+
+
+def case_header_counts_fewer_points_than_the_file_holds(d):
+    """A LAS 1.2 file whose point count says 1000 of its 3000 records (a writer that did not
+    update it): the 1000 are read, as every reader does, with a warning that more records follow."""
+    src = write_las(d / "in" / "short_count.las", bumpy_ground(3000), point_format=3, version="1.2")
+    data = bytearray(src.read_bytes())
+    struct.pack_into("<I", data, 107, 1000)
+    src.write_bytes(bytes(data))
+
+    def check(c):
+        assert len(laspy.read(c.output).points) == 1000
+    return _tiny(d, src, code=0, warning="the header counts 1000 points but the file holds 2000 more", check=check)
+
+
+def case_every_point_written_twice(d):
+    """Every record twice (a delivery merged with itself), shuffled, through the road demo: the
+    same classes as the points once (repeats take their first's labels; the estimates of spacing
+    and noise would read 0 on twins)."""
+    once = synth(d / "in" / "once.laz", "20k", seed=4)
+    las = laspy.read(once)
+    order = np.random.default_rng(0).permutation(np.repeat(np.arange(len(las.points)), 2))
+    twice = laspy.LasData(las.header)
+    twice.points = las.points[order]
+    src = d / "in" / "twice.laz"
+    twice.write(src)
+    reference_out = d / "reference" / "once_result.laz"
+    reference_out.parent.mkdir(parents=True, exist_ok=True)
+
+    def check(c):
+        got = np.asarray(laspy.read(c.output).classification)
+        want = np.asarray(laspy.read(reference_out).classification)[order]
+        np.testing.assert_array_equal(got, want)
+        assert "records repeat the x, y, z of another" in c.proc.stderr
+    case = _demo(d, src, code=0, check=check)
+    case.args = [a for a in case.args if a != "--quiet"]
+    case.reference = ["run", CONFIGS / "demo.yaml", "--backend", "cpu", "--quiet", *DEMO_FAST, "--input", once,
+                      "--output", reference_out]
+    return case
+
+
 CASES = {name[len("case_"):]: fn for name, fn in sorted(globals().items()) if name.startswith("case_")}
 
 

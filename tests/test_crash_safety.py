@@ -169,3 +169,92 @@ def test_clean_up_removes_only_dead_runs_files_of_its_own_output(tmp_path):
         holder.communicate("done\n", timeout=60)
     assert holder.returncode == 0 and not live.exists()          # the holder then renamed its file
     assert out.read_bytes() == b"live"
+
+
+def test_an_output_group_replaces_all_its_files_or_none(tmp_path):
+    from roadx_ti.io.atomic import atomic_output, output_group
+    a, b = tmp_path / "a.txt", tmp_path / "b.txt"
+    a.write_text("old a")
+    with pytest.raises(RuntimeError):
+        with output_group():
+            with atomic_output(a) as tmp:
+                tmp.write_text("new a")
+            assert a.read_text() == "old a"          # written, not yet in place
+            with atomic_output(b) as tmp:
+                tmp.write_text("new b")
+            raise RuntimeError("the last sidecar failed")
+    assert a.read_text() == "old a" and not b.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt"]
+    with output_group():
+        for path, text in ((a, "new a"), (b, "new b")):
+            with atomic_output(path) as tmp:
+                tmp.write_text(text)
+    assert a.read_text() == "new a" and b.read_text() == "new b"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt"]
+    # a folder where a file of the group goes: nothing renamed
+    (tmp_path / "c.txt").mkdir()
+    with pytest.raises(Exception, match="is a folder"):
+        with output_group():
+            for path in (a, tmp_path / "c.txt"):
+                with atomic_output(path) as tmp:
+                    tmp.write_text("newer")
+    assert a.read_text() == "new a"
+
+
+@pytest.mark.parametrize("failure", ["disk full", "interrupt"])
+def test_a_run_failing_at_its_last_sidecar_keeps_every_previous_output(tmp_path, monkeypatch, capsys, failure):
+    """The picture is written last: a disk filling up there, or Ctrl-C then, used to leave the new
+    cloud in place of the old one under a message saying the output was not changed."""
+    import errno
+
+    from roadx_ti import cli, report
+    src = write_las(tmp_path / "small.las", bumpy_ground(3000))
+    config = write_tiny_config(tmp_path)
+    out = tmp_path / "result.laz"
+    assert cli.main(["run", str(config), "--backend", "cpu", "--quiet", "--input", str(src), "--output", str(out),
+                     "--set", "output.report_png=true"]) == 0
+    before = {p.name: sha256(p) for p in tmp_path.iterdir() if p.name.startswith("result")}
+    assert {"result.laz", "result.summary.json", "result.config.yaml", "result.png"} <= set(before)
+
+    def failing_png(path, *args, **kwargs):
+        from roadx_ti.io.atomic import atomic_output
+        with atomic_output(path) as tmp:
+            if failure == "interrupt":
+                raise KeyboardInterrupt
+            raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(report, "top_view_png", failing_png)
+    code = cli.main(["run", str(config), "--backend", "cpu", "--quiet", "--input", str(src), "--output", str(out),
+                     "--set", "output.report_png=true", "--set", "seed=5"])
+    assert code == (130 if failure == "interrupt" else 1)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and ("not changed" in err[0] or "no partial output" in err[0]), err
+    after = {p.name: sha256(p) for p in tmp_path.iterdir() if p.name.startswith("result")}
+    assert after == before
+    assert not [p for p in tmp_path.iterdir() if ".partial" in p.name]
+
+
+def test_a_compressor_failing_to_write_is_one_line_and_changes_nothing(tmp_path):
+    """lazrs reports a full disk as its own LazrsError ('IoError: Failed to call write'), which had
+    reached the user as an unexpected error asking for a bug report."""
+    from roadx_ti.io import InputError
+    from roadx_ti.io.atomic import atomic_output
+
+    class LazrsError(Exception):
+        pass
+    out = tmp_path / "r.laz"
+    out.write_bytes(b"previous")
+    with pytest.raises(InputError, match="writing failed .*IoError: Failed to call write.*not changed"):
+        with atomic_output(out) as tmp:
+            tmp.write_bytes(b"half")
+            raise LazrsError("IoError: Failed to call write")
+    assert out.read_bytes() == b"previous" and sorted(p.name for p in tmp_path.iterdir()) == ["r.laz"]
+
+
+def test_point_counts_are_whole_numbers():
+    import argparse
+
+    from roadx_ti.config import parse_point_count
+    assert [parse_point_count(t) for t in ("1000", "250k", "1.5M", "2.5k")] == [1000, 250_000, 1_500_000, 2500]
+    for text in ("1.5", "1.0005k", "-3", "x"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            parse_point_count(text)

@@ -295,3 +295,37 @@ def test_a_server_that_is_not_a_dask_scheduler_is_named_at_once(greeting):
     for conn in accepted:
         conn.close()
     server.close()
+
+
+def test_ctrl_c_during_a_run_with_workers_says_one_line(tmp_path):
+    """A terminal's Ctrl-C reaches every process of the group: the workers used to print tracebacks
+    and Dask's shutdown warnings (3 to 36 lines); now the CLI's one line, exit 130, the previous
+    output kept and no scratch records left."""
+    import re as _re
+
+    from cli_helpers import cli_command, cli_env, message_lines, sha256, synth, write_las, bumpy_ground
+    src = synth(tmp_path / "street.laz", "150k", seed=2)
+    out = tmp_path / "out" / "r.laz"
+    out.parent.mkdir()
+    write_las(out, bumpy_ground(500))
+    before = sha256(out)
+    proc = subprocess.Popen(cli_command("run", Path(__file__).parents[1] / "configs" / "road_uav.yaml", "--backend", "cpu",
+                                        "--input", src, "--output", out, "--workers", "2", "--tile-size", "20"),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=cli_env(),
+                            start_new_session=True)
+    lines = []
+    deadline = time.monotonic() + 240
+    while time.monotonic() < deadline:
+        line = proc.stderr.readline()
+        if not line:
+            break
+        lines.append(line)
+        if _re.match(r"roadx_ti: tile 2/", line):     # workers busy with the next tiles
+            os.killpg(proc.pid, signal.SIGINT)
+            break
+    rest = proc.communicate(timeout=120)[1]
+    assert proc.returncode == 130, "".join(lines) + rest
+    said = [line for line in message_lines(rest) if not line.startswith("roadx_ti: tile ")]   # progress lines
+    assert "Traceback" not in rest and said == ["roadx_ti: interrupted; no partial output was left"], rest
+    assert sha256(out) == before
+    assert sorted(p.name for p in out.parent.iterdir()) == ["r.laz"]

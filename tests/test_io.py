@@ -717,3 +717,23 @@ def test_streamed_records_equal_the_held_ones_for_a_subset_and_refuse_a_changed_
     with pytest.raises(InputError, match="the input is gone"):
         io.write(tmp_path / "c.laz", streamed, classification=classes, extra_dims=extra)
     assert not (tmp_path / "c.laz").exists()
+
+
+def test_a_header_counting_fewer_points_than_the_file_holds_is_said(tmp_path, caplog):
+    """Only the counted records are read (as laspy and PDAL do), with a warning: points are not
+    dropped unseen."""
+    import logging
+    import struct
+
+    las = laspy.create(point_format=3, file_version="1.2")
+    las.header.scales = [0.01, 0.01, 0.01]
+    las.x, las.y, las.z = np.arange(3000.0) * 0.1, np.zeros(3000), np.zeros(3000)
+    path = tmp_path / "short_count.las"
+    las.write(path)
+    data = bytearray(path.read_bytes())
+    struct.pack_into("<I", data, 107, 1000)          # the legacy point count
+    path.write_bytes(bytes(data))
+    with caplog.at_level(logging.WARNING, logger="roadx_ti"):
+        cloud = io.read(path)
+    assert cloud.n == 1000
+    assert any("header counts 1000 points" in r.getMessage() and "2000 more" in r.getMessage() for r in caplog.records)

@@ -8,6 +8,11 @@ the next write of the same output removes the stale ones: those of this output n
 ran on this host, is no longer alive, and whose lock is free (the kernel drops a dead process's
 locks). A live writer's file (its process alive or its lock held), a file written on another host
 and any other file are never touched.
+
+A run writes several files (the cloud, its summary, config, DTM, picture): inside ``output_group()``
+each of them stays a temporary file until the whole group has succeeded, and all are then renamed
+into place one after the other; a failure or an interrupt anywhere in the group removes them all, so
+that no output of the set is replaced unless every one of them was written.
 """
 from __future__ import annotations
 
@@ -18,6 +23,7 @@ import re
 import socket
 import stat
 import tempfile
+import threading
 from pathlib import Path
 from typing import Iterable, Iterator
 
@@ -181,6 +187,79 @@ def remove_stale_temporaries(path) -> list[Path]:
     return removed
 
 
+class _Group:
+    """Temporary files written inside output_group(), renamed into place when it succeeds."""
+
+    def __init__(self):
+        # (tmp, dest); their locks are let go (a catalog's per-file outputs would hold a descriptor
+        # each); this process is alive, which keeps other runs' clean-up off them
+        self.pending: list[tuple[Path, Path]] = []
+
+    def commit(self) -> None:
+        # what can be foreseen is checked before the first rename (a folder where a file goes)
+        for _, dest in self.pending:
+            if dest.is_dir():
+                raise fail(dest, "is a folder; no output of the run was changed")
+        folders = []
+        try:
+            while self.pending:
+                tmp, dest = self.pending[0]
+                os.replace(tmp, dest)
+                self.pending.pop(0)
+                if dest.parent not in folders:
+                    folders.append(dest.parent)
+        except OSError as exc:
+            raise fail(self.pending[0][1], f"renaming the written file into place failed "
+                                           f"({exc.strerror or exc})") from exc
+        for folder in folders:
+            _fsync_path(folder, directory=True)
+
+    def discard(self) -> None:
+        for tmp, _ in self.pending:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        self.pending.clear()
+
+
+_groups: list[_Group] = []
+_groups_lock = threading.Lock()
+
+
+@contextlib.contextmanager
+def output_group() -> Iterator[None]:
+    """Every atomic_output completed inside the block (in any thread) is renamed into place only when
+    the block succeeds, in the order they were written; on any exception or interrupt all of them are
+    removed and every destination is left as it was (module docstring). Groups nest: an inner group
+    commits into the outer one."""
+    group = _Group()
+    with _groups_lock:
+        _groups.append(group)
+    try:
+        yield
+    except BaseException:
+        with _groups_lock:
+            _groups.remove(group)
+        group.discard()
+        raise
+    with _groups_lock:
+        _groups.remove(group)
+        outer = _groups[-1] if _groups else None
+        if outer is not None:
+            outer.pending.extend(group.pending)
+            group.pending.clear()
+    if outer is None:
+        try:
+            group.commit()
+        except BaseException:
+            group.discard()
+            raise
+
+
+def _open_group():
+    with _groups_lock:
+        return _groups[-1] if _groups else None
+
+
 @contextlib.contextmanager
 def atomic_output(path) -> Iterator[Path]:
     """``with atomic_output(p) as tmp: write tmp`` -> ``tmp`` is fsynced and renamed to ``p`` when
@@ -198,17 +277,37 @@ def atomic_output(path) -> Iterator[Path]:
                          f"({exc.strerror or type(exc).__name__})") from None
     _lock(fd)                # held until the file is renamed or removed: it is live
     tmp = Path(name)
+    group = None
     try:
         yield tmp
         _fsync_path(tmp)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the usual permissions
-        os.replace(tmp, dest)
+        group = _open_group()
+        if group is None:
+            os.replace(tmp, dest)
+        else:
+            group.pending.append((tmp, dest))    # renamed when the group commits
     except BaseException as exc:
+        group = None
         with contextlib.suppress(OSError):
             tmp.unlink()
-        if isinstance(exc, OSError):  # disk full, I/O error: one line, the output left as it was
-            raise fail(dest, f"writing failed ({exc.strerror or exc}); the output was not changed") from exc
+        if isinstance(exc, OSError) or _is_write_error(exc):
+            # disk full, I/O error: one line, the output left as it was
+            raise fail(dest, f"writing failed ({_write_error_text(exc)}); the output was not changed") from exc
         raise
     finally:
         os.close(fd)
-    _fsync_path(dest.parent, directory=True)
+    if group is None:
+        _fsync_path(dest.parent, directory=True)
+
+
+def _is_write_error(exc: BaseException) -> bool:
+    """An I/O failure that a compression library reports as its own type (lazrs: 'IoError: Failed
+    to call write')."""
+    return type(exc).__name__ == "LazrsError" and "IoError" in str(exc)
+
+
+def _write_error_text(exc: BaseException) -> str:
+    if isinstance(exc, OSError):
+        return str(exc.strerror or exc)
+    return " ".join(str(exc).split()) + ": disk full or an I/O error"

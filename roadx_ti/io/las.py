@@ -117,6 +117,16 @@ def check_structure(path) -> None:
     if not compressed and offset + count * record > size:
         have = (size - offset) // record
         raise fail(path, f"truncated LAS/LAZ file: the header says {count} points, the file holds {have}")
+    if not compressed:
+        # more whole records than the header counts (a writer that did not update the count): only
+        # the counted ones are read, as every reader does; say so rather than drop points unseen
+        end = evlr_start if minor >= 4 and evlr_count and offset <= evlr_start <= size else size
+        extra = (end - offset) // record - count
+        if extra > 0:
+            log.warning(
+                "%s: the header counts %d points but the file holds %d more whole point records after them; "
+                "only the %d counted are read (rewrite the file's header, e.g. with pdal translate, if they are points)",
+                path, count, extra, count)
     if minor >= 4 and evlr_count and not (offset <= evlr_start and evlr_start + evlr_count * EVLR_HEADER <= size):
         raise fail(path, f"invalid header: {evlr_count} EVLRs from byte {evlr_start} do not fit in the file "
                          f"of {size} bytes")

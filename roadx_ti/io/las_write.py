@@ -114,6 +114,16 @@ def _plain_header(header) -> laspy.LasHeader:
     return header
 
 
+_WARNED: set = set()
+
+
+def _warn_once(key, message: str, *args) -> None:
+    """A warning about an output file said once, not for every chunk the stream writes."""
+    if key not in _WARNED:
+        _WARNED.add(key)
+        log.warning(message, *args)
+
+
 def _las_from_record(path, src, n: int, classification, extra_dims, index) -> laspy.LasData:
     if len(src.points) != n:
         raise ValueError(f"cloud has {n} points but its LAS record has {len(src.points)}")
@@ -123,8 +133,8 @@ def _las_from_record(path, src, n: int, classification, extra_dims, index) -> la
     fmt_id = header.point_format.id
     if classes is not None and fmt_id in WIDE_CLASS_FORMAT and classes.size and int(classes.max()) > 31:
         wide = WIDE_CLASS_FORMAT[fmt_id]
-        log.warning("%s: class %d does not fit LAS point format %d (classes 0-31); writing LAS 1.4 "
-                    "point format %d instead", path, int(classes.max()), fmt_id, wide)
+        _warn_once(("class", str(path)), "%s: class %d does not fit LAS point format %d (classes 0-31); "
+                   "writing LAS 1.4 point format %d instead", path, int(classes.max()), fmt_id, wide)
         upgraded = laspy.convert(laspy.LasData(header, laspy.ScaleAwarePointRecord(
             array.copy(), header.point_format, header.scales, header.offsets)),
             point_format_id=wide, file_version="1.4")
@@ -134,8 +144,8 @@ def _las_from_record(path, src, n: int, classification, extra_dims, index) -> la
     if fmt_id not in laspy.point.dims.VERSION_TO_POINT_FMT.get(version, ()):
         # laspy reads LAS 1.0 and odd version / format pairs but writes neither
         target = laspy.point.dims.preferred_file_version_for_point_format(fmt_id)
-        log.warning("%s: LAS %s with point format %d cannot be written; writing LAS %s (the point records "
-                    "are the same)", path, version, fmt_id, target)
+        _warn_once(("version", str(path)), "%s: LAS %s with point format %d cannot be written; writing LAS %s "
+                   "(the point records are the same)", path, version, fmt_id, target)
         upgraded = laspy.convert(laspy.LasData(header, laspy.ScaleAwarePointRecord(
             array.copy(), header.point_format, header.scales, header.offsets)),
             point_format_id=fmt_id, file_version=target)

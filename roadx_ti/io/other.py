@@ -256,7 +256,7 @@ def write_ply(path, cloud: Cloud, classification=None, extra_dims=None, subset=N
     for name, a in values.items():
         table[name] = a
     header = ["ply", "format binary_little_endian 1.0", "comment written by roadx_ti",
-              f"comment origin {cloud.origin[0]!r} {cloud.origin[1]!r} {cloud.origin[2]!r}",
+              "comment origin " + " ".join(repr(float(v)) for v in cloud.origin),
               f"element vertex {len(table)}"]
     header += [f"property {PLY_NAMES[np.dtype(t).str[1:]]} {n}" for n, t in fields] + ["end_header", ""]
     with atomic_output(path) as tmp:

@@ -69,8 +69,9 @@ class UniformDownsample(Stage):
         o = self.options
         ratio = o.ratio
         if o.target_density is not None:
-            # the survey's density (a tile keeps the survey-wide share of its points)
-            ratio = o.kept_share(density=estimate(ctx, "density_per_m2"))
+            # the survey's density (a tile keeps the survey-wide share of its points), of distinct
+            # positions: the pipeline leaves repeated records out before the stages (pipelines._run)
+            ratio = o.kept_share(density=estimate(ctx, "distinct_density_per_m2") or estimate(ctx, "density_per_m2"))
         if ratio is not None and ratio < 1.0:
             # later stages' spacings follow the kept density (stages.base.survey_spacing)
             ctx.facts[SAMPLED_SHARE] = float(ctx.facts.get(SAMPLED_SHARE) or 1.0) * ratio

@@ -117,8 +117,10 @@ class _DaskSession:
                                    f"start one with `dask worker {scheduler}`") from None
             self.kind = "scheduler"
         else:
+            # the workers leave Ctrl-C to this process (worker_setup)
             self.cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                        dashboard_address=None, silence_logs=logging.WARNING)
+                                        dashboard_address=None, silence_logs=logging.WARNING,
+                                        preload=["roadx_ti.tiling.worker_setup"])
             self.client = Client(self.cluster)
             self.kind = "local-cluster"
         try:
@@ -154,6 +156,19 @@ class _DaskSession:
                                        "must be readable under the same absolute path on every worker")
 
     def close(self):
+        # a run stopped mid-tile closes busy workers: Dask's "still alive after 4.0 seconds, killing"
+        # and its other shutdown warnings say nothing to the user, who was told the run stopped
+        quiet = [logging.getLogger(name) for name in ("distributed", "distributed.nanny", "distributed.worker")]
+        levels = [q.level for q in quiet]
+        for q in quiet:
+            q.setLevel(logging.ERROR)
+        try:
+            self._close()
+        finally:
+            for q, level in zip(quiet, levels):
+                q.setLevel(level)
+
+    def _close(self):
         if self.client is not None:
             with contextlib.suppress(Exception):
                 self.client.close()

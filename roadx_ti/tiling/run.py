@@ -228,8 +228,8 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
                              dtm=dtm_path is not None)
             run_on_dask(session.client, jobs, on_done, in_flight=2 * n_workers)
     finally:
+        split.remove()          # first: the scratch records must not outlive the run
         bar.close()
-        split.remove()
         if session is not None:
             session.close()
     tiles_s = time.perf_counter() - t_tiles

@@ -48,9 +48,21 @@ class Split:
                 "seconds": round(self.seconds, 4)}
 
     def remove(self) -> None:
-        if self.folder is not None:
-            shutil.rmtree(self.folder, ignore_errors=True)
-            self.folder = None
+        """Delete the scratch folder; a second Ctrl-C or SIGTERM arriving meanwhile (a terminal
+        signals the whole process group, and impatient users press twice) is held until the folder
+        is gone, then raised: the records must not outlive the run."""
+        if self.folder is None:
+            return
+        interrupted = None
+        for _ in range(5):
+            try:
+                shutil.rmtree(self.folder, ignore_errors=True)
+                break
+            except BaseException as exc:      # KeyboardInterrupt, cli.Terminated
+                interrupted = interrupted or exc
+        self.folder = None
+        if interrupted is not None:
+            raise interrupted
 
 
 def _overlap(a, b) -> float:

@@ -1,0 +1,64 @@
+"""Records that repeat another's x, y and z (merged deliveries, a flight strip written twice, every
+point copied): each would be its twin's nearest neighbour at 0 m, so spacing, height and colour
+noise read 0 and every threshold derived from them collapsed (road with every point twice: 54 % of
+the labels right against 98 %). The pipeline leaves repeats out and gives them their first's
+labels; the estimates of a sample count the copies per position from the twins drawn together."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roadx_ti import config, pipelines, synthetic
+from roadx_ti.estimates import copies_per_position, distinct_rows, measure
+from tests.conftest import REPO, switch_backend
+
+
+@pytest.mark.parametrize("kind, config_name, copies", [("uav-road", "road_uav.yaml", 2), ("als-roof", "roof_als.yaml", 3)])
+def test_repeated_records_take_the_labels_of_their_first(kind, config_name, copies):
+    from roadx_ti.stages.base import StageContext
+    switch_backend("cpu")
+    cloud = synthetic.generate(kind, 40_000, seed=3)
+    cfg = config.load(REPO / "configs" / config_name)
+
+    def run(c):
+        return pipelines.run(c, pipelines.build_stages(cfg.stage_list()), ctx=StageContext(seed=0))
+    base = run(cloud)
+    index = np.random.default_rng(1).permutation(np.repeat(np.arange(cloud.n), copies))
+    result = run(cloud.subset(index))
+    assert result.repeated == (copies - 1) * cloud.n
+    np.testing.assert_array_equal(result.classification, base.classification[index])
+    np.testing.assert_array_equal(result.decided_by, base.decided_by[index])
+    for key in ("point_spacing_m", "height_noise_m", "colour_noise", "points"):
+        assert result.estimates[key] == base.estimates[key], key
+
+
+def test_copies_per_position_from_a_draw():
+    assert copies_per_position(100, 100, 0.1) == 1.0
+    assert copies_per_position(300, 100, 1.0) == 3.0
+    rng = np.random.default_rng(0)
+    for m in (2, 3, 5):
+        for f in (0.01, 0.2, 0.7):
+            positions = 200_000
+            drawn = rng.binomial(m, f, positions)          # copies of each position drawn
+            estimate = copies_per_position(int(drawn.sum()), int((drawn > 0).sum()), f)
+            assert estimate == pytest.approx(m, rel=0.1), (m, f)
+
+
+def test_estimates_of_a_sample_with_repeats():
+    """A sample of a catalog (measure with survey_points) whose records repeat: the distinct points,
+    their density and spacing as measured on the distinct cloud itself."""
+    switch_backend("cpu")
+    cloud = synthetic.generate("als-roof", 400_000, seed=1)
+    distinct = measure(cloud)
+    copies = 3
+    total = copies * cloud.n
+    # a uniform draw of 20 % of the records of the cloud with every point three times
+    drawn = np.random.default_rng(2).binomial(copies, 0.2, cloud.n)
+    sample = cloud.subset(np.repeat(np.arange(cloud.n), drawn))
+    got = measure(sample, survey_points=total, area=distinct["plan_area_m2"])
+    assert got["copies_per_position"] == pytest.approx(copies, rel=0.05)
+    assert got["distinct_points"] == pytest.approx(cloud.n, rel=0.05)
+    assert got["distinct_density_per_m2"] == pytest.approx(distinct["density_per_m2"], rel=0.05)
+    assert got["point_spacing_m"] == pytest.approx(distinct["point_spacing_m"], rel=0.05)
+    assert got["height_noise_m"] == pytest.approx(distinct["height_noise_m"], rel=0.1)
+    assert len(distinct_rows(sample.xyz)) == int((drawn > 0).sum())
