@@ -845,6 +845,17 @@ def case_header_counts_fewer_points_than_the_file_holds(d):
     return _tiny(d, src, code=0, warning="the header counts 1000 points but the file holds 2000 more", check=check)
 
 
+def case_las14_count_only_in_the_legacy_field(d):
+    """LAS 1.4 whose 64-bit point count is 0 while the legacy field says 3000: exit 1 naming both
+    counts (it had read as 'the input holds no points')."""
+    src = write_las(d / "in" / "legacy_only.las", bumpy_ground(3000), point_format=1, version="1.4")
+    data = bytearray(src.read_bytes())
+    struct.pack_into("<I", data, 107, 3000)
+    struct.pack_into("<Q", data, 247, 0)
+    src.write_bytes(bytes(data))
+    return _tiny(d, src, message="its LAS 1.4 point count is 0 but its legacy point count says 3000")
+
+
 def case_every_point_written_twice(d):
     """Every record twice (a delivery merged with itself), shuffled, through the road demo: the
     same classes as the points once (repeats take their first's labels; the estimates of spacing

@@ -80,6 +80,11 @@ def check_structure(path) -> None:
             raise fail(path, f"truncated LAS/LAZ file: {len(head)} bytes, a LAS {major}.{minor} header needs {need}")
         if minor >= 4:
             evlr_start, evlr_count, count = struct.unpack_from("<QIQ", head, 235)
+            if count == 0 and struct.unpack_from("<I", head, 107)[0] > 0:
+                legacy = struct.unpack_from("<I", head, 107)[0]
+                raise fail(path, f"invalid header: its LAS 1.4 point count is 0 but its legacy point count says "
+                                 f"{legacy} (a writer that filled only the older field); readers take the LAS 1.4 "
+                                 "count, so rewrite the header (e.g. pdal translate, las2las)")
         if not need <= header_size <= offset <= size:
             raise fail(path, f"invalid header: header size {header_size}, offset to the points {offset}, "
                              f"file size {size} (LAS {major}.{minor} needs {need} <= header size <= offset <= file size)")
