@@ -856,6 +856,26 @@ def case_las14_count_only_in_the_legacy_field(d):
     return _tiny(d, src, message="its LAS 1.4 point count is 0 but its legacy point count says 3000")
 
 
+def case_an_earlier_output_in_the_input_folder(d):
+    """A catalog folder that holds an earlier run's merged output (--output tiles/merged.laz): the
+    next run of the folder leaves it out with a warning (it would have joined as a tile, every point
+    twice); the output holds the tiles' points once."""
+    folder = d / "in" / "tiles"
+    folder.mkdir(parents=True)
+    xyz = bumpy_ground(4000, side=40.0)
+    west = xyz[:, 0] < np.median(xyz[:, 0])
+    write_las(folder / "a.laz", xyz[west])
+    write_las(folder / "b.laz", xyz[~west])
+    earlier = laspy.read(write_las(folder / "merged.laz", xyz))
+    earlier.add_extra_dim(laspy.ExtraBytesParams(name="roadx_label", type=np.uint8))
+    earlier.write(folder / "merged.laz")
+
+    def check(c):
+        assert len(laspy.read(c.output).points) == len(xyz)
+    return _tiny(d, folder, code=0, extra=["--tile-size", "25"], warning="skipped 1 file(s) that roadx_ti wrote",
+                 check=check)
+
+
 def case_every_point_written_twice(d):
     """Every record twice (a delivery merged with itself), shuffled, through the road demo: the
     same classes as the points once (repeats take their first's labels; the estimates of spacing

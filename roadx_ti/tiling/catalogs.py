@@ -40,6 +40,18 @@ def folder_files(folder: Path, warn: bool = True) -> list[Path]:
     order = ["las"] + [s for s in io.EXTENSIONS if s not in LAS_SUFFIXES]
     chosen = "las" if "las" in families else max(families, key=lambda f: (len(families[f]), -order.index(f)))
     found = families[chosen]
+    if chosen == "las":
+        # a run's own output written into its input folder (--output tiles/merged.laz) would join the
+        # next run of that folder as a tile: every point twice. Files carrying the result dimension
+        # are left out while the folder holds others (name one to process it)
+        ours = [q for q in found if _written_by_us(q)]
+        if ours and len(ours) < len(found):
+            found = [q for q in found if q not in ours]
+            if warn:
+                shown = ", ".join(q.name for q in ours[:5]) + (f" and {len(ours) - 5} more" if len(ours) > 5 else "")
+                log_default.warning("%s: skipped %d file(s) that roadx_ti wrote (they carry %s): %s; name a "
+                                    "file to process it", folder, len(ours), RESULT_DIMENSION, shown)
+            entries = [q for q in entries if q not in ours]
     skipped = [q.name for q in entries if q not in found]
     if skipped and warn:
         kind = "LAS/LAZ" if chosen == "las" else chosen
@@ -47,6 +59,20 @@ def folder_files(folder: Path, warn: bool = True) -> list[Path]:
         log_default.warning("%s: the catalog is its %d %s file(s); skipped %d other file(s): %s",
                             folder, len(found), kind, len(skipped), shown)
     return found
+
+
+RESULT_DIMENSION = "roadx_label"     # the extra dimension every LAS/LAZ output of a run carries
+
+
+def _written_by_us(path: Path) -> bool:
+    """The LAS/LAZ file carries RESULT_DIMENSION (a header read; unreadable files say so later)."""
+    import laspy
+
+    try:
+        with laspy.open(path) as reader:
+            return RESULT_DIMENSION in reader.header.point_format.extra_dimension_names
+    except Exception:
+        return False
 
 
 def catalog(inputs, warn: bool = True) -> list[CatalogFile]:
