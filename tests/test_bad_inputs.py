@@ -876,6 +876,19 @@ def case_an_earlier_output_in_the_input_folder(d):
                  check=check)
 
 
+def case_catalog_of_two_point_formats_merged(d):
+    """A catalog of a point format 3 and a point format 6 file into one merged LAZ: exit 1 before
+    any tile runs (it failed at the merge, after every tile), naming both formats and per-file."""
+    folder = d / "in" / "mixed"
+    folder.mkdir(parents=True)
+    xyz = bumpy_ground(4000, side=40.0)
+    west = xyz[:, 0] < np.median(xyz[:, 0])
+    write_las(folder / "a.las", xyz[west], point_format=3, version="1.2")
+    write_las(folder / "b.laz", xyz[~west], point_format=6)
+    case = _tiny(d, folder, extra=["--tile-size", "25"], message="point format 3 against 6", max_seconds=30.0)
+    return case
+
+
 def case_every_point_written_twice(d):
     """Every record twice (a delivery merged with itself), shuffled, through the road demo: the
     same classes as the points once (repeats take their first's labels; the estimates of spacing

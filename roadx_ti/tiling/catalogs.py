@@ -115,9 +115,10 @@ def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> No
 
     log = log or log_default
     las = [f for f in files if Path(f.path).suffix.lower() in LAS_SUFFIXES]
-    crs, grids = {}, {}
+    crs, grids, formats = {}, {}, {}
     for f in las:
         with laspy.open(f.path) as reader:
+            formats[f.path] = (reader.header.point_format.id, reader.header.point_format.dtype())
             crs[f.path] = of_header(reader.header)
             grids[f.path] = (tuple(float(v) for v in reader.header.scales),
                              tuple(float(v) for v in reader.header.offsets))
@@ -147,6 +148,14 @@ def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> No
                         len(unnamed), unnamed[0], _crs_name(first), first_path)
     if merged_las:
         first_path = las[0].path
+        # one merged file holds one point format: say it before the tiles run, not at the merge
+        for f in las[1:]:
+            if formats[f.path] != formats[first_path]:
+                (a, da), (b, db) = formats[first_path], formats[f.path]
+                what = f"point format {a} against {b}" if a != b else "other extra dimensions"
+                raise io.InputError(f"{f.path}: cannot be merged with {first_path} ({what}: a merged LAS/LAZ "
+                                    "output holds one point format); use output.mode per-file, or convert them "
+                                    "to one format first (e.g. pdal translate --writers.las.dataformat_id)")
         differ = [f.path for f in las if not _on_grid(grids[f.path], grids[first_path])]
         if differ:
             scales, offsets = grids[first_path]
