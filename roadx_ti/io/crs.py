@@ -2,6 +2,7 @@
 record as it is, or the EPSG codes of the GeoTIFF keys (horizontal, + vertical when present)."""
 from __future__ import annotations
 
+import contextlib
 import logging
 
 from .las import crs_records
@@ -11,20 +12,37 @@ log = logging.getLogger(__name__)
 
 def of_header(header):
     """rasterio CRS of a LAS header, or None when it has no (usable) CRS record."""
+    import rasterio
     from rasterio.crs import CRS
     from rasterio.errors import CRSError
 
     wkt, codes = crs_records(header)
+    if not wkt and not codes:
+        return None
     try:
-        if wkt:
-            return CRS.from_wkt(wkt)
-        if codes:
+        # inside an Env, GDAL's own message ('ERROR 1: missing [') goes to Python logging, quiet
+        # here, instead of straight to stderr beside the one warning below
+        with rasterio.Env(), _silenced("rasterio._err"):
+            if wkt:
+                return CRS.from_wkt(wkt)
             return CRS.from_user_input("+".join(f"EPSG:{c}" for c in codes) if len(codes) > 1
                                        else f"EPSG:{codes[0]}")
     except CRSError as exc:
         log.warning("the input's CRS record cannot be read (%s); it is left out of the outputs",
                     " ".join(str(exc).split()))
     return None
+
+
+@contextlib.contextmanager
+def _silenced(name: str):
+    """The logger ``name`` says nothing below CRITICAL inside."""
+    logger = logging.getLogger(name)
+    level = logger.level
+    logger.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
 
 
 def of_path(path):

@@ -51,7 +51,7 @@ def world_cloud(path, world: np.ndarray, origin, columns: dict) -> Cloud:
     for names in RGB_NAMES:
         if all(n in lower for n in names):
             keys = [lower[n] for n in names]
-            rgb, depth = _colour(np.column_stack([columns[k] for k in keys]))
+            rgb, depth = _colour(path, np.column_stack([columns[k] for k in keys]))
             taken.update(keys)
             break
     intensity = _take_integral(columns, lower, INTENSITY_NAMES, np.uint16, taken)
@@ -62,7 +62,13 @@ def world_cloud(path, world: np.ndarray, origin, columns: dict) -> Cloud:
     return Cloud.from_world(world, origin=origin, **kw)
 
 
-def _colour(rgb: np.ndarray) -> tuple[np.ndarray, int]:
+def _colour(path, rgb: np.ndarray) -> tuple[np.ndarray, int]:
+    values = np.asarray(rgb, np.float64)
+    if values.size and (np.nanmin(values) < 0 or np.nanmax(values) > 65535):
+        # colour outside what 16 bits hold is not colour (a column of other values under a colour
+        # name); clamping it would pass off made-up colours as the file's
+        raise fail(path, f"colour values must be 0-65535 (8- or 16-bit) or 0-1, got {np.nanmin(values):g} to "
+                         f"{np.nanmax(values):g}")
     if rgb.dtype.kind == "f":
         scale = 255.0 if rgb.size and float(np.nanmax(rgb)) <= 1.0 else 1.0
         rgb = np.clip(np.round(np.nan_to_num(rgb) * scale), 0, 65535)
