@@ -889,6 +889,17 @@ def case_catalog_of_two_point_formats_merged(d):
     return case
 
 
+def case_text_colour_beyond_16_bits(d):
+    """A text file whose red / green / blue columns hold 70000 and -5: exit 1 naming the range (the
+    values were clamped to 65535 and 0, made-up colours passed off as the file's)."""
+    xyz = bumpy_ground(500)
+    rgb = np.tile([[70000, 120, -5]], (len(xyz), 1))
+    path = d / "in" / "colour.txt"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savetxt(path, np.column_stack([xyz, rgb]), fmt="%.3f", header="x y z red green blue", comments="")
+    return _tiny(d, path, message="colour values must be 0-65535")
+
+
 def case_every_point_written_twice(d):
     """Every record twice (a delivery merged with itself), shuffled, through the road demo: the
     same classes as the points once (repeats take their first's labels; the estimates of spacing
