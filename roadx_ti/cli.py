@@ -244,6 +244,18 @@ def _output_paths(out: Path) -> dict:
             "png": Path(f"{stem}.png")}
 
 
+def _check_distinct_outputs(out: Path, dtm: Path) -> None:
+    """The DTM and its sidecars (x.json of x.npy, x.prj of x.asc) must not be the run's other files:
+    output.dtm=r.summary.npy would write the DTM's placement over the run's summary."""
+    mine = {"output": out, **_output_paths(out)}
+    dtm_files = [dtm, dtm.with_suffix(".json"), dtm.with_suffix(".prj")]
+    for name, path in mine.items():
+        for other in dtm_files:
+            if Path(os.path.abspath(path)) == Path(os.path.abspath(other)):
+                raise UsageError(f"output.dtm = {dtm}: its file {other} would be the run's {name} file; "
+                                 "give the DTM another name")
+
+
 def cmd_run(args) -> int:
     from roadx_ti.io.atomic import output_group
 
@@ -274,6 +286,8 @@ def _cmd_run(args) -> int:
         raise config.ConfigError("config error: input: give input.paths, input.synthetic or --input PATH")
     cfg.input.paths = _expand_patterns(cfg.input.paths)
     out = Path(cfg.output.path)
+    if cfg.dtm_path() is not None:
+        _check_distinct_outputs(out, cfg.dtm_path())
     from roadx_ti import memory
     if cfg.memory_limit:
         os.environ[memory.LIMIT_VARIABLE] = cfg.memory_limit     # also seen by local Dask workers

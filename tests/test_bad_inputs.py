@@ -900,6 +900,15 @@ def case_text_colour_beyond_16_bits(d):
     return _tiny(d, path, message="colour values must be 0-65535")
 
 
+def case_dtm_named_over_the_summary(d):
+    """output.dtm=result.summary.npy: its placement file result.summary.json is the run's summary;
+    exit 2 before any work (the summary had silently overwritten the DTM's placement)."""
+    src = write_las(d / "in" / "ground.laz", bumpy_ground(2000))
+    out = d / "out" / "result.laz"
+    return _run(CONFIGS / "ground.yaml", d, src, code=2, extra=["--set", f"output.dtm={d / 'out' / 'result.summary.npy'}"],
+                message="would be the run's summary file")
+
+
 def case_every_point_written_twice(d):
     """Every record twice (a delivery merged with itself), shuffled, through the road demo: the
     same classes as the points once (repeats take their first's labels; the estimates of spacing
