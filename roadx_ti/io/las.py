@@ -51,6 +51,9 @@ HEADER_SIZES = {0: 227, 1: 227, 2: 227, 3: 235, 4: 375}
 VLR_HEADER, EVLR_HEADER = 54, 60
 
 
+_SAID_EXTRA: set = set()      # files whose uncounted records were warned about
+
+
 def check_structure(path) -> None:
     """Check a LAS/LAZ file's header against the file itself before laspy reads it, so that a
     lying field fails in one line instead of an allocation or a loop sized by it (a VLR count of
@@ -126,8 +129,15 @@ def check_structure(path) -> None:
         # more whole records than the header counts (a writer that did not update the count): only
         # the counted ones are read, as every reader does; say so rather than drop points unseen
         end = evlr_start if minor >= 4 and evlr_count and offset <= evlr_start <= size else size
-        extra = (end - offset) // record - count
-        if extra > 0:
+        # only whole records to the end: bytes that are not (a wrong record length, trailing data)
+        # are for the reader's own checks to name
+        trailing = end - offset - count * record
+        extra = trailing // record if trailing > 0 and trailing % record == 0 else 0
+        if extra > 0 and count == 0:
+            raise fail(path, f"invalid header: it counts no points but the file holds {extra} whole point records; "
+                             "rewrite the file's header (e.g. pdal translate) if they are points")
+        if extra > 0 and str(path) not in _SAID_EXTRA:
+            _SAID_EXTRA.add(str(path))       # the header is checked at every read of the file
             log.warning(
                 "%s: the header counts %d points but the file holds %d more whole point records after them; "
                 "only the %d counted are read (rewrite the file's header, e.g. with pdal translate, if they are points)",
