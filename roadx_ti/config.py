@@ -41,7 +41,8 @@ class OutputConfig(_Strict):
     path: str = Field("out/result.laz", description="result point cloud (.laz/.las/.ply/.npz/.xyz)")
     points: Literal["all", "processed"] = Field(
         "all", description="all: every input point in input order (label transfer for points "
-        "skipped by downsampling); processed: only the points that reached the last stage")
+        "skipped by downsampling and for records repeating another's x, y, z); processed: only the "
+        "points the stages worked on (neither skipped nor a repeat)")
     report_png: bool = Field(True, description="write a top-view PNG beside the output")
     dtm: str | bool | None = Field(None, description="write the cloth of the last cloth stage as a DTM "
                                    "raster: a path (.tif/.tiff GeoTIFF with the input's CRS, .asc ESRI "

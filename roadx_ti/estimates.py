@@ -57,9 +57,11 @@ def uniform_sample(n: int, size: int, seed: int = 0) -> np.ndarray:
 
 
 def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, survey_points: int | None = None,
-            area: float | None = None) -> dict:
+            area: float | None = None, drawn_by_position: bool = False) -> dict:
     """The estimates of the module docstring for ``cloud``: a whole survey, or (with
-    ``survey_points`` and ``area``) a uniform sample of one of that many points over that area."""
+    ``survey_points`` and ``area``) a uniform sample of one of that many points over that area:
+    of its records each drawn alone, or with ``drawn_by_position`` of its positions (measure_catalog
+    draws by a hash of the coordinates: a position comes with all of its copies)."""
     from roadx_ti.kernels.neighbors import knn
 
     n = cloud.n
@@ -69,10 +71,22 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
            "density_per_m2": round(total / area, 3) if area else 0.0}
     if n < 8:
         return out
+    if drawn_by_position:
+        # every copy of a drawn position is in the sample: the copies per position are counted
+        first = distinct_rows(cloud.xyz)
+        if len(first) < n:
+            copies = n / len(first)
+            total = max(int(round(total / copies)), len(first))
+            out.update({"distinct_points": total, "copies_per_position": round(copies, 3),
+                        "distinct_density_per_m2": round(total / area, 3) if area else 0.0})
+            cloud, n = cloud.subset(first), len(first)
+            if n < 8:
+                return out
     pick = uniform_sample(n, sample_points, seed)
     xyz = np.ascontiguousarray(cloud.xyz[pick])
     first = distinct_rows(xyz)
     if len(first) < len(xyz):
+        # records drawn alone: the copies per position from the twins drawn together
         copies = copies_per_position(len(xyz), len(first), len(xyz) / total)
         total = max(int(round(total / copies)), len(first))
         out.update({"distinct_points": total, "copies_per_position": round(copies, 3),
@@ -307,7 +321,7 @@ def measure_catalog(files, read_origin, sample_points: int = 2 * SAMPLE_POINTS, 
     # in canonical order, so that measure's own subsample does not follow the files' point order
     order = canonical_order(sample)
     sample = sample if order is None else sample.subset(order)
-    out = measure(sample, survey_points=total, area=area)
+    out = measure(sample, survey_points=total, area=area, drawn_by_position=True)
     out["sample_points"] = int(sample.n)
     out["area_cell_m"] = AREA_CELL
     return (out, CellCounts.from_keys(occupied, per_cell, AREA_CELL)) if with_cells else out

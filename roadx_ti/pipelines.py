@@ -195,6 +195,11 @@ def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class
     if not processed.all():
         _transfer_labels(lambda index: np.take(cloud.xyz, index if order is None else order[index], axis=0),
                          processed, classification, decided_by, segment_id)
+    if repeated.any() and extra_dims:
+        # a repeat is the same point: its first's values (the first of its run in canonical order)
+        first = np.maximum.accumulate(np.where(repeated, 0, np.arange(n)))
+        for values in extra_dims.values():
+            values[repeated] = values[first[repeated]]
     return PipelineResult(classification, decided_by, segment_id, processed, rows,
                           time.perf_counter() - t_start, dict(ctx.facts[ESTIMATES]), extra_dims,
                           int(repeated.sum()))

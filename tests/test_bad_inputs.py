@@ -909,6 +909,20 @@ def case_dtm_named_over_the_summary(d):
                 message="would be the run's summary file")
 
 
+def case_catalog_extra_dimensions_described_apart_merged(d):
+    """Two files of one point format whose extra dimension 'amp' (float32) is described apart:
+    laspy refuses to write them into one file, so the run says so before any tile."""
+    folder = d / "in" / "described"
+    folder.mkdir(parents=True)
+    xyz = bumpy_ground(4000, side=40.0)
+    west = xyz[:, 0] < np.median(xyz[:, 0])
+    for name, part, text in (("a.laz", xyz[west], "amplitude"), ("b.laz", xyz[~west], "echo amplitude dB")):
+        las = laspy.read(write_las(folder / name, part))
+        las.add_extra_dim(laspy.ExtraBytesParams(name="amp", type=np.float32, description=text))
+        las.write(folder / name)
+    return _tiny(d, folder, extra=["--tile-size", "25"], message="other extra dimensions", max_seconds=30.0)
+
+
 def case_every_point_written_twice(d):
     """Every record twice (a delivery merged with itself), shuffled, through the road demo: the
     same classes as the points once (repeats take their first's labels; the estimates of spacing

@@ -28,8 +28,27 @@ def test_repeated_records_take_the_labels_of_their_first(kind, config_name, copi
     assert result.repeated == (copies - 1) * cloud.n
     np.testing.assert_array_equal(result.classification, base.classification[index])
     np.testing.assert_array_equal(result.decided_by, base.decided_by[index])
+    assert set(result.extra_dims) == set(base.extra_dims)
+    for name, values in base.extra_dims.items():        # the stages' point outputs too (NaN where unseen)
+        np.testing.assert_array_equal(result.extra_dims[name], values[index], err_msg=name)
     for key in ("point_spacing_m", "height_noise_m", "colour_noise", "points"):
         assert result.estimates[key] == base.estimates[key], key
+
+
+def test_repeats_carry_their_firsts_stage_outputs():
+    """A stage's point outputs (Stage.writes: height_above_ground) are the first's for a repeat,
+    not NaN as for a point no stage saw."""
+    from roadx_ti.stages import stage_class
+    from roadx_ti.stages.base import StageContext
+    switch_backend("cpu")
+    cloud = synthetic.generate("als-roof", 20_000, seed=3)
+    specs = [(name, stage_class(name).Options()) for name in ("cloth_ground", "height_above_ground")]
+    base = pipelines.run(cloud, pipelines.build_stages(specs), ctx=StageContext(seed=0))
+    index = np.random.default_rng(2).permutation(np.repeat(np.arange(cloud.n), 2))
+    result = pipelines.run(cloud.subset(index), pipelines.build_stages(specs), ctx=StageContext(seed=0))
+    values = base.extra_dims["height_above_ground"]
+    assert np.isfinite(values).mean() > 0.2
+    np.testing.assert_array_equal(result.extra_dims["height_above_ground"], values[index])
 
 
 def test_copies_per_position_from_a_draw():
@@ -62,3 +81,29 @@ def test_estimates_of_a_sample_with_repeats():
     assert got["point_spacing_m"] == pytest.approx(distinct["point_spacing_m"], rel=0.05)
     assert got["height_noise_m"] == pytest.approx(distinct["height_noise_m"], rel=0.1)
     assert len(distinct_rows(sample.xyz)) == int((drawn > 0).sum())
+
+
+def test_catalog_estimates_of_a_file_with_every_point_twice(tmp_path):
+    """measure_catalog draws its sample by a hash of the coordinates: a position comes with all of
+    its copies, so the copies are counted, not solved for as for records drawn alone (which read
+    32 copies instead of 2 at a 5 % draw)."""
+    import laspy
+
+    from roadx_ti.estimates import measure_catalog
+    from roadx_ti.tiling import catalog
+    switch_backend("cpu")
+    cloud = synthetic.generate("als-roof", 300_000, seed=1)
+    distinct = measure(cloud)
+    world = cloud.world_xyz()
+    header = laspy.LasHeader(point_format=1, version="1.2")
+    header.scales = [0.001] * 3
+    header.offsets = np.floor(world.min(axis=0))
+    las = laspy.LasData(header)
+    twice = np.repeat(world, 2, axis=0)
+    las.x, las.y, las.z = twice[:, 0], twice[:, 1], twice[:, 2]
+    path = tmp_path / "twice.las"
+    las.write(path)
+    got = measure_catalog(catalog([path]), np.floor(world.min(axis=0)), sample_points=30_000)
+    assert got["copies_per_position"] == pytest.approx(2.0, rel=0.02)
+    assert got["distinct_points"] == pytest.approx(cloud.n, rel=0.02)
+    assert got["point_spacing_m"] == pytest.approx(distinct["point_spacing_m"], rel=0.1)

@@ -11,8 +11,11 @@ and any other file are never touched.
 
 A run writes several files (the cloud, its summary, config, DTM, picture): inside ``output_group()``
 each of them stays a temporary file until the whole group has succeeded, and all are then renamed
-into place one after the other; a failure or an interrupt anywhere in the group removes them all, so
-that no output of the set is replaced unless every one of them was written.
+into place one after the other (signals held meanwhile); a failure or an interrupt anywhere in the
+group removes them all, so that no output of the set is replaced unless every one of them was
+written. A group's finished temporaries wait without their lock (a catalog's per-file outputs
+would hold a descriptor each): other runs' clean-up leaves them alone while this process lives on
+this host.
 """
 from __future__ import annotations
 
@@ -221,43 +224,63 @@ class _Group:
         self.pending.clear()
 
 
-_groups: list[_Group] = []
-_groups_lock = threading.Lock()
+_local = threading.local()      # per thread: its stack of open groups
+
+
+def _stack() -> list:
+    if not hasattr(_local, "groups"):
+        _local.groups = []
+    return _local.groups
 
 
 @contextlib.contextmanager
 def output_group() -> Iterator[None]:
-    """Every atomic_output completed inside the block (in any thread) is renamed into place only when
+    """Every atomic_output this thread completes inside the block is renamed into place only when
     the block succeeds, in the order they were written; on any exception or interrupt all of them are
     removed and every destination is left as it was (module docstring). Groups nest: an inner group
-    commits into the outer one."""
-    group = _Group()
-    with _groups_lock:
-        _groups.append(group)
+    commits into the outer one. Other threads' outputs are theirs (a thread's own group, or renamed
+    at once)."""
+    group, stack = _Group(), _stack()
+    stack.append(group)
     try:
         yield
     except BaseException:
-        with _groups_lock:
-            _groups.remove(group)
+        stack.remove(group)
         group.discard()
         raise
-    with _groups_lock:
-        _groups.remove(group)
-        outer = _groups[-1] if _groups else None
-        if outer is not None:
-            outer.pending.extend(group.pending)
-            group.pending.clear()
-    if outer is None:
-        try:
+    stack.remove(group)
+    if stack:
+        stack[-1].pending.extend(group.pending)
+        group.pending.clear()
+        return
+    try:
+        with _signals_held():
             group.commit()
-        except BaseException:
-            group.discard()
-            raise
+    except BaseException:
+        group.discard()
+        raise
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """Ctrl-C, SIGTERM and SIGHUP wait until the block is done (the renames of a group: an interrupt
+    between two of them would leave a mixed set); raised after it. Main thread only."""
+    import signal
+
+    held = {getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)}
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _open_group():
-    with _groups_lock:
-        return _groups[-1] if _groups else None
+    stack = _stack()
+    return stack[-1] if stack else None
 
 
 @contextlib.contextmanager

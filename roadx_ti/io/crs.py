@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import threading
 
 from .las import crs_records
 
@@ -33,16 +34,21 @@ def of_header(header):
     return None
 
 
+_SILENCE_LOCK = threading.RLock()
+
+
 @contextlib.contextmanager
 def _silenced(name: str):
-    """The logger ``name`` says nothing below CRITICAL inside."""
-    logger = logging.getLogger(name)
-    level = logger.level
-    logger.setLevel(logging.CRITICAL)
-    try:
-        yield
-    finally:
-        logger.setLevel(level)
+    """The logger ``name`` says nothing below CRITICAL inside (one thread at a time: the level is
+    the process's)."""
+    with _SILENCE_LOCK:
+        logger = logging.getLogger(name)
+        level = logger.level
+        logger.setLevel(logging.CRITICAL)
+        try:
+            yield
+        finally:
+            logger.setLevel(level)
 
 
 def of_path(path):

@@ -129,6 +129,10 @@ def check_structure(path) -> None:
         # more whole records than the header counts (a writer that did not update the count): only
         # the counted ones are read, as every reader does; say so rather than drop points unseen
         end = evlr_start if minor >= 4 and evlr_count and offset <= evlr_start <= size else size
+        if minor == 3 and len(head) >= 235:
+            # LAS 1.3: waveform packets may follow the points inside the file
+            waveform = struct.unpack_from("<Q", head, 227)[0]
+            end = waveform if offset < waveform <= end else end
         # only whole records to the end: bytes that are not (a wrong record length, trailing data)
         # are for the reader's own checks to name
         trailing = end - offset - count * record

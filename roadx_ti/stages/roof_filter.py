@@ -297,6 +297,7 @@ def segment_widths(segment: np.ndarray, xy: np.ndarray, count: int) -> np.ndarra
 # at 2-17 points/m2 is 0.1-0.3 m on 2-6 m strips), a disc's 1.15; an L of two arms or a curved
 # hedge reads far under it
 BENT_RATIO = 0.6
+INSCRIBED_MAX_CELLS = 4_000_000
 
 
 def inscribed_widths(segment: np.ndarray, xy: np.ndarray, judged: np.ndarray, spacing: np.ndarray) -> np.ndarray:
@@ -317,8 +318,13 @@ def inscribed_widths(segment: np.ndarray, xy: np.ndarray, judged: np.ndarray, sp
     starts = np.searchsorted(segment[order], ids)
     ends = np.searchsorted(segment[order], ids, side="right")
     for s, a, b in zip(ids, starts, ends):
-        cell = float(spacing[s]) / 2
+        if b <= a:
+            continue
         p = xy[order[a:b]].astype(np.float64)
+        extent = p.max(axis=0) - p.min(axis=0)
+        # a raster of at most INSCRIBED_MAX_CELLS (a 300 m low hall at UAV density would ask for
+        # 10^8 cells): coarser cells for the largest segments, whose width is far from the test's
+        cell = max(float(spacing[s]) / 2, float(np.sqrt((extent[0] + 1) * (extent[1] + 1) / INSCRIBED_MAX_CELLS)))
         ij = np.floor((p - p.min(axis=0)) / cell).astype(np.int64) + pad
         mask = np.zeros(tuple(ij.max(axis=0) + pad + 1), bool)
         mask[ij[:, 0], ij[:, 1]] = True
@@ -697,6 +703,8 @@ class RoofFilter(Stage):
             if o.width_measure != "covariance":
                 # only where the decision can change: low segments that pass the area and height tests
                 judge = keep_area & keep_height & (median_height < o.narrow_max_height)
+                if o.width_measure == "bent":     # bent only narrows: the narrow ones stay narrow
+                    judge &= width >= o.min_roof_width
                 # each segment's own spacing (its points' median neighbour density): the survey's
                 # estimate misses flight-strip overlap and thinning
                 inscribed = inscribed_widths(segment, cloud.xyz[:, :2], judge, 1 / np.sqrt(np.maximum(area_density, 1e-6)))

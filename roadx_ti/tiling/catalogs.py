@@ -118,7 +118,7 @@ def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> No
     crs, grids, formats = {}, {}, {}
     for f in las:
         with laspy.open(f.path) as reader:
-            formats[f.path] = (reader.header.point_format.id, reader.header.point_format.dtype())
+            formats[f.path] = reader.header.point_format
             crs[f.path] = of_header(reader.header)
             grids[f.path] = (tuple(float(v) for v in reader.header.scales),
                              tuple(float(v) for v in reader.header.offsets))
@@ -150,8 +150,9 @@ def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> No
         first_path = las[0].path
         # one merged file holds one point format: say it before the tiles run, not at the merge
         for f in las[1:]:
+            # laspy's own test when it writes (ids, and extra dimensions with their descriptions)
             if formats[f.path] != formats[first_path]:
-                (a, da), (b, db) = formats[first_path], formats[f.path]
+                a, b = formats[first_path].id, formats[f.path].id
                 what = f"point format {a} against {b}" if a != b else "other extra dimensions"
                 raise io.InputError(f"{f.path}: cannot be merged with {first_path} ({what}: a merged LAS/LAZ "
                                     "output holds one point format); use output.mode per-file, or convert them "
