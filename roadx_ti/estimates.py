@@ -57,11 +57,12 @@ def uniform_sample(n: int, size: int, seed: int = 0) -> np.ndarray:
 
 
 def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, survey_points: int | None = None,
-            area: float | None = None, drawn_by_position: bool = False) -> dict:
+            area: float | None = None, drawn_by_position: bool = False, distinct: bool = False) -> dict:
     """The estimates of the module docstring for ``cloud``: a whole survey, or (with
     ``survey_points`` and ``area``) a uniform sample of one of that many points over that area:
     of its records each drawn alone, or with ``drawn_by_position`` of its positions (measure_catalog
-    draws by a hash of the coordinates: a position comes with all of its copies)."""
+    draws by a hash of the coordinates: a position comes with all of its copies). ``distinct``: the
+    caller left repeated positions out already (the pipeline), so they are not looked for."""
     from roadx_ti.kernels.neighbors import knn
 
     n = cloud.n
@@ -84,7 +85,7 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
                 return out
     pick = uniform_sample(n, sample_points, seed)
     xyz = np.ascontiguousarray(cloud.xyz[pick])
-    first = distinct_rows(xyz)
+    first = np.arange(len(xyz)) if distinct else distinct_rows(xyz)
     if len(first) < len(xyz):
         # records drawn alone: the copies per position from the twins drawn together
         copies = copies_per_position(len(xyz), len(first), len(xyz) / total)

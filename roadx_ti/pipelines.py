@@ -51,7 +51,10 @@ def repeated_positions(xyz: np.ndarray) -> np.ndarray:
     each other): its x, y and z are those of the point before it."""
     out = np.zeros(len(xyz), bool)
     if len(xyz) > 1:
-        out[1:] = (xyz[1:] == xyz[:-1]).all(axis=1)
+        x = xyz[:, 0]
+        same = np.flatnonzero(x[1:] == x[:-1])        # few: y and z compared there only
+        same = same[(xyz[same + 1, 1] == xyz[same, 1]) & (xyz[same + 1, 2] == xyz[same, 2])]
+        out[same + 1] = True
     return out
 
 
@@ -116,7 +119,8 @@ def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class
     if ESTIMATES not in ctx.facts:
         # measured on the whole input before any stage (a tiled run hands in the survey's)
         from roadx_ti.estimates import measure
-        ctx.facts[ESTIMATES] = measure(whole if not repeated.any() else whole.subset(np.flatnonzero(~repeated)))
+        ctx.facts[ESTIMATES] = measure(whole if not repeated.any() else whole.subset(np.flatnonzero(~repeated)),
+                                       distinct=True)
     if any(getattr(stage, "uses_data_edge", False) for stage in stages):
         # the edge of this run's points (a tile's own window), not the survey's
         from roadx_ti.footprint import data_edge
