@@ -29,10 +29,19 @@ class UsageError(Exception):
     """A usage mistake (exit 2)."""
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """argparse, whose mistakes are one line (its usage text is for --help)."""
+
+    def error(self, message):
+        command = self.prog.partition(" ")[2]        # 'roadx_ti synth' -> 'synth'
+        where = f"{command}: " if command else ""
+        self.exit(EXIT_USAGE, f"roadx_ti: {where}{message} (see {self.prog} --help)\n")
+
+
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="roadx_ti", description=__doc__.split("\n")[0])
+    p = _OneLineParser(prog="roadx_ti", description=__doc__.split("\n")[0])
     p.add_argument("--version", action="version", version=f"roadx_ti {__version__}")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_OneLineParser)
 
     r = sub.add_parser("run", help="run a pipeline from a YAML config")
     r.add_argument("config", help="YAML config (see configs/)")

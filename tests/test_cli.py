@@ -140,3 +140,15 @@ def test_input_wildcard_pattern_reads_the_files_it_matches(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [f"roadx_ti: config error: input.paths = "
                                                 f"'{tiles / '*.ply'}': no file matches the pattern"]
+
+
+@pytest.mark.parametrize("args, said", [(["synth", "--kind", "uav-road", "--points", "1.5", "-o", "x.laz"],
+                                         "a point count is a whole number"),
+                                        (["run"], "the following arguments are required: config"),
+                                        (["frobnicate"], "invalid choice: 'frobnicate'")])
+def test_command_line_mistakes_are_one_line(tmp_path, args, said):
+    """argparse's usage text (several lines) is for --help; a mistake is one line and exit 2."""
+    from cli_helpers import error_line
+    proc = run_cli(*args, cwd=tmp_path)
+    line = error_line(proc, 2)
+    assert said in line and "--help" in line
