@@ -76,10 +76,7 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
         # every copy of a drawn position is in the sample: the copies per position are counted
         first = distinct_rows(cloud.xyz)
         if len(first) < n:
-            copies = n / len(first)
-            total = max(int(round(total / copies)), len(first))
-            out.update({"distinct_points": total, "copies_per_position": round(copies, 3),
-                        "distinct_density_per_m2": round(total / area, 3) if area else 0.0})
+            total = _without_copies(out, total, n / len(first), len(first), area)
             cloud, n = cloud.subset(first), len(first)
             if n < 8:
                 return out
@@ -89,9 +86,7 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     if len(first) < len(xyz):
         # records drawn alone: the copies per position from the twins drawn together
         copies = copies_per_position(len(xyz), len(first), len(xyz) / total)
-        total = max(int(round(total / copies)), len(first))
-        out.update({"distinct_points": total, "copies_per_position": round(copies, 3),
-                    "distinct_density_per_m2": round(total / area, 3) if area else 0.0})
+        total = _without_copies(out, total, copies, len(first), area)
         pick, xyz = pick[first], np.ascontiguousarray(xyz[first])
         if len(xyz) < 8:
             return out
@@ -119,6 +114,15 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
         out["colour_noise"] = round(float(MAD_TO_SIGMA * np.median(np.abs(grey[b] - grey[a])) / np.sqrt(2.0)), 3)
     log.info("survey estimates: %s", out)
     return out
+
+
+def _without_copies(out: dict, total: int, copies: float, seen: int, area: float) -> int:
+    """The survey's distinct points (at least the ``seen`` ones) at ``copies`` records per
+    position, written into the estimates ``out`` with their density; returned."""
+    total = max(int(round(total / copies)), seen)
+    out.update({"distinct_points": total, "copies_per_position": round(copies, 3),
+                "distinct_density_per_m2": round(total / area, 3) if area else 0.0})
+    return total
 
 
 def distinct_rows(xyz: np.ndarray) -> np.ndarray:

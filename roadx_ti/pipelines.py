@@ -196,14 +196,16 @@ def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class
     del whole
     if segment_id is None:
         segment_id = np.full(n, -1, np.int32)
-    if not processed.all():
+    skipped = ~processed & ~repeated
+    if skipped.any():
         _transfer_labels(lambda index: np.take(cloud.xyz, index if order is None else order[index], axis=0),
-                         processed, classification, decided_by, segment_id)
-    if repeated.any() and extra_dims:
-        # a repeat is the same point: its first's values (the first of its run in canonical order)
-        first = np.maximum.accumulate(np.where(repeated, 0, np.arange(n)))
-        for values in extra_dims.values():
-            values[repeated] = values[first[repeated]]
+                         processed, skipped, classification, decided_by, segment_id)
+    if repeated.any():
+        # a repeat is the same point: every result of its first (the first of its run in canonical
+        # order), with no neighbour query
+        first = np.maximum.accumulate(np.where(repeated, 0, np.arange(n)))[repeated]
+        for values in (classification, decided_by, segment_id, *extra_dims.values()):
+            values[repeated] = values[first]
     return PipelineResult(classification, decided_by, segment_id, processed, rows,
                           time.perf_counter() - t_start, dict(ctx.facts[ESTIMATES]), extra_dims,
                           int(repeated.sum()))
@@ -219,14 +221,14 @@ def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class
 TRANSFER_Z_SCALE = 4.0
 
 
-def _transfer_labels(xyz_of, processed, classification, decided_by, segment_id):
-    """Points skipped by downsampling take the result of their nearest processed point, heights
-    counted TRANSFER_Z_SCALE times (ties to the lower index). ``xyz_of(index)``: the coordinates
-    of those positions (a new array)."""
+def _transfer_labels(xyz_of, processed, skipped, classification, decided_by, segment_id):
+    """Points ``skipped`` by downsampling take the result of their nearest ``processed`` point,
+    heights counted TRANSFER_Z_SCALE times (ties to the lower index). ``xyz_of(index)``: the
+    coordinates of those positions (a new array)."""
     from roadx_ti.kernels.neighbors import nearest
 
     source = np.flatnonzero(processed)
-    target = np.flatnonzero(~processed)
+    target = np.flatnonzero(skipped)
     if len(source) == 0:
         return
 

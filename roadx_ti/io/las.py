@@ -51,7 +51,15 @@ HEADER_SIZES = {0: 227, 1: 227, 2: 227, 3: 235, 4: 375}
 VLR_HEADER, EVLR_HEADER = 54, 60
 
 
-_SAID_EXTRA: set = set()      # files whose uncounted records were warned about
+_WARNED: set = set()      # (kind, file) of the warnings said already in this process
+
+
+def warn_once(key, message: str, *args) -> None:
+    """A warning about a file said once per ``key``: the header is checked at every read of a file,
+    and a streamed write builds its header for every chunk."""
+    if key not in _WARNED:
+        _WARNED.add(key)
+        log.warning(message, *args)
 
 
 def check_structure(path) -> None:
@@ -140,10 +148,9 @@ def check_structure(path) -> None:
         if extra > 0 and count == 0:
             raise fail(path, f"invalid header: it counts no points but the file holds {extra} whole point records; "
                              "rewrite the file's header (e.g. pdal translate) if they are points")
-        if extra > 0 and str(path) not in _SAID_EXTRA:
-            _SAID_EXTRA.add(str(path))       # the header is checked at every read of the file
-            log.warning(
-                "%s: the header counts %d points but the file holds %d more whole point records after them; "
+        if extra > 0:
+            warn_once(
+                ("uncounted", str(path)), "%s: the header counts %d points but the file holds %d more whole point records after them; "
                 "only the %d counted are read (rewrite the file's header, e.g. with pdal translate, if they are points)",
                 path, count, extra, count)
     if minor >= 4 and evlr_count and not (offset <= evlr_start and evlr_start + evlr_count * EVLR_HEADER <= size):

@@ -18,7 +18,8 @@ import numpy as np
 
 from ..cloud import Cloud
 from .atomic import InputError, atomic_output, fail
-from .las import CHUNK_POINTS, EXTRA_DIM_TYPES, MAX_POINTS, NEW_FILE_SCALE, WIDE_CLASS_FORMAT, _too_many, is_copc
+from .las import CHUNK_POINTS, EXTRA_DIM_TYPES, MAX_POINTS, NEW_FILE_SCALE, WIDE_CLASS_FORMAT, _too_many, is_copc, \
+    warn_once
 
 log = logging.getLogger(__name__)
 
@@ -114,16 +115,6 @@ def _plain_header(header) -> laspy.LasHeader:
     return header
 
 
-_WARNED: set = set()
-
-
-def _warn_once(key, message: str, *args) -> None:
-    """A warning about an output file said once, not for every chunk the stream writes."""
-    if key not in _WARNED:
-        _WARNED.add(key)
-        log.warning(message, *args)
-
-
 def _las_from_record(path, src, n: int, classification, extra_dims, index) -> laspy.LasData:
     if len(src.points) != n:
         raise ValueError(f"cloud has {n} points but its LAS record has {len(src.points)}")
@@ -133,7 +124,7 @@ def _las_from_record(path, src, n: int, classification, extra_dims, index) -> la
     fmt_id = header.point_format.id
     if classes is not None and fmt_id in WIDE_CLASS_FORMAT and classes.size and int(classes.max()) > 31:
         wide = WIDE_CLASS_FORMAT[fmt_id]
-        _warn_once(("class", str(path)), "%s: class %d does not fit LAS point format %d (classes 0-31); "
+        warn_once(("class", str(path)), "%s: class %d does not fit LAS point format %d (classes 0-31); "
                    "writing LAS 1.4 point format %d instead", path, int(classes.max()), fmt_id, wide)
         upgraded = laspy.convert(laspy.LasData(header, laspy.ScaleAwarePointRecord(
             array.copy(), header.point_format, header.scales, header.offsets)),
@@ -144,7 +135,7 @@ def _las_from_record(path, src, n: int, classification, extra_dims, index) -> la
     if fmt_id not in laspy.point.dims.VERSION_TO_POINT_FMT.get(version, ()):
         # laspy reads LAS 1.0 and odd version / format pairs but writes neither
         target = laspy.point.dims.preferred_file_version_for_point_format(fmt_id)
-        _warn_once(("version", str(path)), "%s: LAS %s with point format %d cannot be written; writing LAS %s "
+        warn_once(("version", str(path)), "%s: LAS %s with point format %d cannot be written; writing LAS %s "
                    "(the point records are the same)", path, version, fmt_id, target)
         upgraded = laspy.convert(laspy.LasData(header, laspy.ScaleAwarePointRecord(
             array.copy(), header.point_format, header.scales, header.offsets)),
