@@ -18,11 +18,11 @@ from pathlib import Path
 from roadx_ti import __version__, jsonio, units
 from roadx_ti.config import parse_point_count
 from roadx_ti.errors import DataError  # a data mistake: exit 1
+from roadx_ti.result_dims import DECIDED_BY, RESULT_DIMS, result_dims
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
 log = logging.getLogger("roadx_ti")
 # the per-point results every run writes beside the classification (cmd_run's io.write): name -> dtype
-RESULT_DIMS = {"roadx_label": "uint8", "segment_id": "int32"}
 
 
 class UsageError(Exception):
@@ -367,7 +367,7 @@ def _cmd_run(args) -> int:
     subset = None if cfg.output.points == "all" else result.processed
     t1 = time.perf_counter()
     io.write(out, cloud, classification=result.classification,
-             extra_dims={"roadx_label": result.decided_by, "segment_id": result.segment_id, **result.extra_dims},
+             extra_dims=result_dims(result.decided_by, result.segment_id, result.extra_dims),
              subset=subset)
     write_s = time.perf_counter() - t1
     paths = _output_paths(out)
@@ -376,7 +376,7 @@ def _cmd_run(args) -> int:
         "points": cloud.n, "backend": arch, "read_seconds": round(read_s, 4),
         "pipeline_seconds": round(result.seconds, 4), "write_seconds": round(write_s, 4),
         "target_class": target, "target_points": int((result.classification == target).sum()),
-        "roadx_label": {"0": "reached the last stage"} | {str(r["index"]): f"removed by {r['stage']}"
+        DECIDED_BY: {"0": "reached the last stage"} | {str(r["index"]): f"removed by {r['stage']}"
                                                          for r in result.stages},
         "estimates": result.estimates,
         "stages": result.stages,

@@ -5,7 +5,9 @@
 
 Per size, one uav-road scene is written as LAZ (cached in ``--cache``, default
 ~/.cache/roadx_ti/road_anchor; generation reported apart), then ``python -m roadx_ti run
-configs/road_uav.yaml`` and ``python benchmarks/road_anchor/anchor.py`` run on it as child
+configs/road_uav.yaml`` (without its top-view picture, which the anchor does not draw: the same
+job on both sides; its summary JSON and config copy are still written) and ``python
+benchmarks/road_anchor/anchor.py`` run on it as child
 processes under GNU time, once each to warm up (roadx_ti's offline cache) and then in
 alternating rounds (roadx_ti, anchor, roadx_ti, anchor ...) so that the shared machine's load
 drifts over both alike. Recorded per run: wall, user + system CPU, peak RSS, the seconds of each
@@ -51,7 +53,7 @@ def errors(truth: np.ndarray, output: Path) -> dict:
 
 def run_roadx_ti(scene: Path, out: Path) -> dict:
     row, _ = timed([sys.executable, "-m", "roadx_ti", "run", CONFIG, "--input", str(scene), "--output", str(out),
-                    "--quiet"])
+                    "--set", "output.report_png=false", "--quiet"])
     summary = json.loads(out.with_name(out.stem + ".summary.json").read_text())
     steps = {"read": summary["read_seconds"], "write": summary["write_seconds"]}
     for stage in summary["stages"]:

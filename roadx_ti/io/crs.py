@@ -2,9 +2,9 @@
 record as it is, or the EPSG codes of the GeoTIFF keys (horizontal, + vertical when present)."""
 from __future__ import annotations
 
-import contextlib
 import logging
-import threading
+
+from roadx_ti.quiet_logs import quieted
 
 from .las import crs_records
 
@@ -23,7 +23,7 @@ def of_header(header):
     try:
         # inside an Env, GDAL's own message ('ERROR 1: missing [') goes to Python logging, quiet
         # here, instead of straight to stderr beside the one warning below
-        with rasterio.Env(), _silenced("rasterio._err"):
+        with rasterio.Env(), quieted(["rasterio._err"], logging.CRITICAL):
             if wkt:
                 return CRS.from_wkt(wkt)
             return CRS.from_user_input("+".join(f"EPSG:{c}" for c in codes) if len(codes) > 1
@@ -32,23 +32,6 @@ def of_header(header):
         log.warning("the input's CRS record cannot be read (%s); it is left out of the outputs",
                     " ".join(str(exc).split()))
     return None
-
-
-_SILENCE_LOCK = threading.RLock()
-
-
-@contextlib.contextmanager
-def _silenced(name: str):
-    """The logger ``name`` says nothing below CRITICAL inside (one thread at a time: the level is
-    the process's)."""
-    with _SILENCE_LOCK:
-        logger = logging.getLogger(name)
-        level = logger.level
-        logger.setLevel(logging.CRITICAL)
-        try:
-            yield
-        finally:
-            logger.setLevel(level)
 
 
 def of_path(path):

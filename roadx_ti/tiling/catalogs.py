@@ -8,6 +8,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from roadx_ti.result_dims import DECIDED_BY
+
 log_default = logging.getLogger("roadx_ti")
 
 
@@ -50,7 +52,7 @@ def folder_files(folder: Path, warn: bool = True) -> list[Path]:
             if warn:
                 shown = ", ".join(q.name for q in ours[:5]) + (f" and {len(ours) - 5} more" if len(ours) > 5 else "")
                 log_default.warning("%s: skipped %d file(s) that roadx_ti wrote (they carry %s): %s; name a "
-                                    "file to process it", folder, len(ours), RESULT_DIMENSION, shown)
+                                    "file to process it", folder, len(ours), DECIDED_BY, shown)
             entries = [q for q in entries if q not in ours]
     skipped = [q.name for q in entries if q not in found]
     if skipped and warn:
@@ -61,16 +63,13 @@ def folder_files(folder: Path, warn: bool = True) -> list[Path]:
     return found
 
 
-RESULT_DIMENSION = "roadx_label"     # the extra dimension every LAS/LAZ output of a run carries
-
-
 def _written_by_us(path: Path) -> bool:
-    """The LAS/LAZ file carries RESULT_DIMENSION (a header read; unreadable files say so later)."""
+    """The LAS/LAZ file carries DECIDED_BY (a header read; unreadable files say so later)."""
     import laspy
 
     try:
         with laspy.open(path) as reader:
-            return RESULT_DIMENSION in reader.header.point_format.extra_dimension_names
+            return DECIDED_BY in reader.header.point_format.extra_dimension_names
     except Exception:
         return False
 

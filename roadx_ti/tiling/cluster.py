@@ -7,6 +7,7 @@ import logging
 import socket
 import sys
 
+from roadx_ti.quiet_logs import quieted
 from roadx_ti.tiling.errors import ClusterError
 
 CONNECT_TIMEOUT = 5.0            # s: reaching the scheduler
@@ -158,15 +159,8 @@ class _DaskSession:
     def close(self):
         # a run stopped mid-tile closes busy workers: Dask's "still alive after 4.0 seconds, killing"
         # and its other shutdown warnings say nothing to the user, who was told the run stopped
-        quiet = [logging.getLogger(name) for name in ("distributed", "distributed.nanny", "distributed.worker")]
-        levels = [q.level for q in quiet]
-        for q in quiet:
-            q.setLevel(logging.ERROR)
-        try:
+        with quieted(("distributed", "distributed.nanny", "distributed.worker"), logging.ERROR):
             self._close()
-        finally:
-            for q, level in zip(quiet, levels):
-                q.setLevel(level)
 
     def _close(self):
         if self.client is not None:

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from roadx_ti.result_dims import SEGMENT
 from roadx_ti.tiling.plan import CoreGrid, _border_distance
 from roadx_ti.tiling.tile import _world_xy
 
@@ -42,8 +43,8 @@ def compare_outputs(tiled_summary: dict, tiled_output, reference_output, *, summ
     grid = CoreGrid(**tiling["grid"])
     dist = _border_distance(grid, xa[differ], ya[differ])
     hist, _ = np.histogram(dist, bins=DISTANCE_BINS)
-    seg_a = np.asarray(a.las["segment_id"], np.int64)
-    seg_b = np.asarray(b.las["segment_id"], np.int64)
+    seg_a = np.asarray(a.las[SEGMENT], np.int64)
+    seg_b = np.asarray(b.las[SEGMENT], np.int64)
     crossing, whole = 0, 0
     if (seg_b >= 0).any():
         # reference segments spread over several cores: are they one segment in the tiled run?

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from roadx_ti.result_dims import DECIDED_BY, SEGMENT, result_dims
 from roadx_ti.tiling.catalogs import CatalogFile
 from roadx_ti.tiling.errors import TileError
 from roadx_ti.tiling.plan import TilePlan
@@ -139,9 +140,9 @@ def _write_las_stream(out: Path, file_ids, merge: _Merge, processed_only: bool) 
     def labels(i, chunk):
         cls, dec, seg, proc, extra = merge.labels(file_ids[i], np.asarray(chunk.x), np.asarray(chunk.y),
                                                   np.asarray(chunk.classification))
-        return cls, {"roadx_label": dec, "segment_id": seg, **extra}, proc if processed_only else None
+        return cls, result_dims(dec, seg, extra), proc if processed_only else None
 
-    empty = (np.zeros(0, np.uint8), {"roadx_label": np.zeros(0, np.uint8), "segment_id": np.zeros(0, np.int32),
+    empty = (np.zeros(0, np.uint8), {DECIDED_BY: np.zeros(0, np.uint8), SEGMENT: np.zeros(0, np.int32),
                                      **{name: np.zeros(0, np.float32) for name in merge.extra_names}},
              np.zeros(0, bool) if processed_only else None)
     return io_las.write_las_stream(out, [merge.files[k].path for k in file_ids], labels, empty=empty,
@@ -164,7 +165,7 @@ def _write_generic(out: Path, file_ids, merge: _Merge, processed_only: bool) -> 
     cloud = concat_clouds(clouds, merge.plan.read_origin)
     cls, dec, seg, proc = (np.concatenate(parts) for parts in zip(*(label[:4] for label in labels)))
     extra = {name: np.concatenate([label[4][name] for label in labels]) for name in merge.extra_names}
-    io.write(out, cloud, classification=cls, extra_dims={"roadx_label": dec, "segment_id": seg, **extra},
+    io.write(out, cloud, classification=cls, extra_dims=result_dims(dec, seg, extra),
              subset=proc if processed_only else None)
     return int(proc.sum()) if processed_only else cloud.n
 
