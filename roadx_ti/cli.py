@@ -457,7 +457,13 @@ def _write_dtm(path: Path, surface, cloud, crs) -> dict:
     the input's CRS ``crs`` (rasterio CRS or None)."""
     from roadx_ti import dtm
 
-    t = dtm.write(path, surface.largest, surface.origin, xy=cloud.xyz[:, :2], crs=crs)
+    import numpy as np
+
+    heights, t = dtm.grid(surface.largest, surface.origin, cloud.xyz[:, :2])
+    if not np.isfinite(heights).any():
+        log.warning("output.dtm: no cell of the ground surface lies under the points; no DTM written")
+        return {"path": None, "reason": "no cell of the ground surface lies under the points"}
+    t = dtm.write_grid(path, heights, t, crs)
     log.info("wrote DTM %s: %d x %d cells of %g m over the occupied area (%d with data)", path,
              t["cols"], t["rows"], t["cell_size"], t["valid_cells"])
     return dtm.summary(path, t, crs)
@@ -603,10 +609,34 @@ def cmd_eval(args) -> int:
             raise DataError(f"{name}: its classification column holds values that are not classes 0..255")
         if cloud.classification is None:
             raise DataError(f"{name} has no classification")
+    _same_points(pred, truth, args.pred, args.truth)
+    for cloud, classes, name in ((pred, pred_classes, args.pred), (truth, truth_classes, args.truth)):
+        if cloud.n and not class_mask(cloud.classification, classes).any():
+            log.warning("%s: no point carries class %s", name, ", ".join(str(c) for c in classes))
     result = scores(class_mask(truth.classification, truth_classes), class_mask(pred.classification, pred_classes))
     result["truth_classes"], result["pred_classes"] = truth_classes, pred_classes
     print(jsonio.dumps(result))
     return EXIT_OK
+
+
+# m: points of the two files farther apart than this (beyond their coordinates' resolution) are
+# not the same points
+SAME_POINT_TOLERANCE = 0.01
+
+
+def _same_points(pred, truth, pred_name, truth_name) -> None:
+    """eval matches points by order: the two files' points must be where the other's are (a truth
+    file of the same points in another order gave kappa near 0, silently)."""
+    import numpy as np
+
+    if not pred.n:
+        return
+    apart = np.abs(pred.world_xyz() - truth.world_xyz()).max(axis=1) > SAME_POINT_TOLERANCE + 1e-6
+    if apart.any():
+        i = int(np.flatnonzero(apart)[0])
+        raise DataError(f"{pred_name} and {truth_name}: {int(apart.sum()):,} of {pred.n:,} points lie more than "
+                        f"{SAME_POINT_TOLERANCE * 100:g} cm from their namesake (first: point {i}); eval matches "
+                        "points by order, so both files must hold the same points in the same order")
 
 
 # -------------------------------------------------------------------------------------- info

@@ -180,6 +180,11 @@ class RunConfig(_Strict):
     def _one_executor(self):
         if self.executor.workers is not None and self.executor.scheduler:
             raise ValueError("executor: give workers (a local cluster) or scheduler (an existing one), not both")
+        workers = self.executor.workers
+        if workers is not None and workers > max_local_workers():
+            raise ValueError(f"executor.workers {workers}: a local cluster of more than {max_local_workers()} "
+                             f"processes ({WORKERS_PER_CPU} per CPU here) would only wait on each other; for more "
+                             "machines start a Dask scheduler and give --scheduler")
         return self
 
     @property
@@ -218,6 +223,15 @@ def output_stem(path) -> Path:
 _UNION_MEMBER_TYPES = {"float", "int", "str", "bool", "none", "list", "tuple", "dict"}
 
 
+WORKERS_PER_CPU = 4    # a local cluster's processes per CPU at most (each holds tiles in memory)
+
+
+def max_local_workers() -> int:
+    import os
+
+    return WORKERS_PER_CPU * (os.cpu_count() or 1)
+
+
 def _error_key(loc) -> str:
     return ".".join(str(p) for p in loc
                     if isinstance(p, int) or (str(p).isidentifier() and str(p) not in _UNION_MEMBER_TYPES))
@@ -236,6 +250,10 @@ def _one_line(exc: ValidationError, prefix: str = "") -> str:
             msgs.append(msg)
     rest = len(errors) - len(same)
     more = f" (and {rest} more)" if rest else ""
+    if not key:
+        # a rule over several keys (a model validator): its input is the whole config, not worth
+        # printing; its message names the keys
+        return "config error: " + ", or ".join(m.removeprefix("Value error, ") for m in msgs) + more
     return f"config error: {key} = {errors[0].get('input')!r}: {', or '.join(msgs)}{more}"
 
 

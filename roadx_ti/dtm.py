@@ -48,11 +48,16 @@ def occupied_window(result, xy: np.ndarray):
     rows, cols = result.cloth_z.shape
     res = float(result.resolution)
     scene = footprint.scene(xy)
-    pts = np.asarray(xy)[scene.keep, :2].astype(np.float64)
-    c = np.rint((pts[:, 0] - result.x0) / res).astype(np.int64)
-    r = np.rint((pts[:, 1] - result.y0) / res).astype(np.int64)
-    inside = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
-    c, r = c[inside], r[inside]
+    for pts in (np.asarray(xy)[scene.keep, :2], np.asarray(xy)[:, :2]):
+        # the scene's points, or, where none lie under this cloth (a cloud of scattered single
+        # points: the cloth is over its largest part, the scene another), all of them
+        pts = pts.astype(np.float64)
+        c = np.rint((pts[:, 0] - result.x0) / res).astype(np.int64)
+        r = np.rint((pts[:, 1] - result.y0) / res).astype(np.int64)
+        inside = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
+        c, r = c[inside], r[inside]
+        if len(c):
+            break
     if len(c) == 0:
         return (0, 0, 0, 0), np.zeros((0, 0), bool)
     reach = max(1, math.ceil(scene.cell / res))

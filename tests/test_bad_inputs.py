@@ -949,6 +949,74 @@ def case_every_point_written_twice(d):
     return case
 
 
+def case_las14_crs_and_records_in_evlrs(d):
+    """A LAS 1.4 file whose WKT CRS and a custom record are extended VLRs (after the points, as
+    COPC and large WKTs put them): both are in the output (the streamed writer dropped every EVLR,
+    and with it the CRS, silently)."""
+    src = write_las(d / "in" / "evlr.las", bumpy_ground(2000))
+    las = laspy.read(src)
+    las.header.global_encoding.wkt = True
+    las.header.evlrs = laspy.vlrs.vlrlist.VLRList([laspy.vlrs.known.WktCoordinateSystemVlr(_crs_wkt(32631)),
+                                                   laspy.VLR("someorg", 43, "kept", b"abc")])
+    las.write(src)
+
+    def check(c):
+        with laspy.open(c.output) as reader:
+            records = [(v.user_id, v.record_id) for v in reader.header.evlrs]
+        assert ("someorg", 43) in records and ("LASF_Projection", 2112) in records, records
+    return _run(CONFIGS / "ground.yaml", d, src, code=0, check=check)
+
+
+def case_pcd_with_one_normal_field(d):
+    """A PCD declaring normal_x without normal_y / normal_z: one line (Open3D's reader crashed the
+    process, exit 139, no message)."""
+    path = d / "in" / "normal_x.pcd"
+    rows = "".join(f"{i % 5} {i // 5} 1 0\n" for i in range(10))
+    path.write_text("VERSION 0.7\nFIELDS x y z normal_x\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 10\n"
+                    "HEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 10\nDATA ascii\n" + rows)
+    return _tiny(d, path, message="but not all of normal_x normal_y normal_z")
+
+
+def case_the_same_file_twice_through_a_hard_link(d):
+    """A file and a hard link to it as two inputs: refused as the same file named twice (every
+    point was taken twice; the same path, ./ spellings and symbolic links were refused already)."""
+    src = write_las(d / "in" / "a.laz", bumpy_ground(1500))
+    link = d / "in" / "b.laz"
+    os.link(src, link)
+    return _run(CONFIGS / "ground.yaml", d, src, link, message="the same input file is named twice")
+
+
+def case_npz_classes_that_are_not_whole_numbers(d):
+    """An NPZ whose classification holds 2.7: one line (it was cut to class 2 silently)."""
+    path = d / "in" / "classes.npz"
+    xyz = bumpy_ground(500)
+    np.savez(path, xyz=xyz, classification=np.full(len(xyz), 2.7))
+    return _tiny(d, path, message="'classification' must hold whole numbers 0-255")
+
+
+def case_scattered_points_over_100_km(d):
+    """1000 points scattered over 100 x 100 km through the ground pipeline with its DTM: every
+    point labelled and a DTM of the largest part (the raster's window was empty: 'writing failed
+    (Attempt to create 0x0 dataset ...)' and no output at all)."""
+    rng = np.random.default_rng(3)
+    xyz = np.column_stack([rng.uniform(0, 1e5, 1000) + 500_000.0, rng.uniform(0, 1e5, 1000) + 4_500_000.0,
+                           rng.uniform(0, 50, 1000)])
+    src = write_las(d / "in" / "scattered.las", xyz)
+
+    def check(c):
+        assert len(laspy.read(c.output).points) == 1000
+        assert c.output.with_suffix(".dtm.tif").is_file()
+    return _run(CONFIGS / "ground.yaml", d, src, code=0, warning="parts more than 100 m apart", check=check)
+
+
+def case_more_local_workers_than_the_machine_runs(d):
+    """--workers 100000: one line before any work (the run waited for minutes starting a cluster
+    of 100000 processes)."""
+    src = write_las(d / "in" / "ground.laz", bumpy_ground(1500))
+    return _run(CONFIGS / "ground.yaml", d, src, code=2, extra=["--workers", "100000"],
+                message="a local cluster of more than")
+
+
 CASES = {name[len("case_"):]: fn for name, fn in sorted(globals().items()) if name.startswith("case_")}
 
 

@@ -152,3 +152,44 @@ def test_command_line_mistakes_are_one_line(tmp_path, args, said):
     proc = run_cli(*args, cwd=tmp_path)
     line = error_line(proc, 2)
     assert said in line and "--help" in line
+
+
+@pytest.mark.parametrize("args, said", [
+    (["bench", "--quick", "--impls", "foo"], "unknown implementation(s) foo"),     # ran, 0 rows, exit 0
+    (["bench", "--quick", "--threads", "0"], "--threads must be >= 1"),            # was accepted
+    (["bench", "--quick", "--budget", "-1"], "--budget must be a number of seconds > 0"),
+    (["bench", "--quick", "--timeout", "0"], "--timeout must be a number of seconds > 0"),  # every row an error
+    (["bench", "--quick", "--sizes", ","], "--sizes names no size"),              # fell back to the defaults
+    (["bench", "--quick", "--anchor-sizes", "7M"], "--anchor-sizes 7M not among the sizes"),
+    (["bench", "--quick", "--out", "a_file"], "--out a_file: is a file"),         # failed after every case
+    (["bench", "--quick", "--results", "."], "--results .: is a folder"),
+    (["bench", "--render", "missing.json"], "--render missing.json: not a bench JSON record"),
+    (["bench", "--render", "a_file"], "--render a_file: not a bench JSON record"),   # UnicodeDecodeError
+    (["accuracy", "--task", "roof", "--out", "a_file"], "--out a_file: is a file"),  # FileExistsError
+    (["synth", "--kind", "uav-road", "--points", "1000", "--density", "1e-9", "-o", "x.laz"],
+     "would be a scene 1,000.0 km across"),                                        # laid out for minutes
+    (["run", str(REPO / "configs" / "ground.yaml"), "--input", "x.laz", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"],
+     "config error: executor: give workers (a local cluster) or scheduler"),       # the whole config was printed
+])
+def test_mistakes_in_the_other_commands_are_one_line_before_any_work(tmp_path, args, said):
+    """The bench, accuracy and synth options (and rules over several config keys) checked before any
+    case, scene or run: one line, exit 2 (these were tracebacks as 'unexpected error ... please
+    report it', silent exits 0 or runs of minutes). Nothing is written."""
+    from cli_helpers import error_line
+    (tmp_path / "a_file").write_bytes(b"\xea\x00 not json")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    proc = run_cli(*args, cwd=tmp_path, timeout=120)
+    line = error_line(proc, 2)
+    assert said in line, line
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_eval_of_the_same_points_in_another_order_is_refused(tmp_path, road_scene):
+    """eval matches points by order: a truth file holding the scene's points shuffled gave kappa
+    near 0 without a word; the points' positions are compared first."""
+    las = laspy.read(road_scene)
+    las.points = las.points[np.random.default_rng(0).permutation(len(las.points))]
+    las.write(tmp_path / "shuffled.laz")
+    proc = run_cli("eval", "--pred", str(road_scene), "--truth", str(tmp_path / "shuffled.laz"), "--truth-classes", "11")
+    from cli_helpers import error_line
+    assert "both files must hold the same points in the same order" in error_line(proc, 1)

@@ -143,3 +143,43 @@ def test_copc_without_copclib_or_in_tiles_is_a_one_line_error(tmp_path):
                               "--output", tmp_path / "out" / "t.copc.laz"), 2)
     assert "COPC" in line
     assert not (tmp_path / "out" / "r.copc.laz").exists() and not (tmp_path / "out" / "t.copc.laz").exists()
+
+
+class _FullDiskWriter:
+    """copclib.FileWriter as it behaves on a full disk: a chunk fails, and so does every close (its
+    destructor closes again, and a throwing destructor aborts the process)."""
+    closes = 0
+
+    def __init__(self, path, cfg):
+        self.path = path
+
+    def AddNode(self, key, data):
+        raise RuntimeError("BaseWriter::WriteChunk: Chunk is too large!")
+
+    def Close(self):
+        type(self).closes += 1
+        raise RuntimeError("WriterInternal::WriteHeader: LasHeader + VLRs are bigger than offset to point data.")
+
+
+def test_a_copc_write_that_fails_is_one_line_and_leaves_nothing(tmp_path, monkeypatch):
+    """A full disk while copclib writes: the run's one-line write failure (it was 'unexpected error
+    ... please report it', then the process aborted in copclib's destructor, exit 134)."""
+    import copclib
+    monkeypatch.setattr(copclib, "FileWriter", _FullDiskWriter)
+    cloud = io.read(legacy_las(tmp_path / "in.las", n=2000))
+    with pytest.raises(io.InputError, match="writing failed .*Chunk is too large.*the output was not changed"):
+        io.write(tmp_path / "out.copc.laz", cloud)
+    assert _FullDiskWriter.closes >= 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.las"]
+
+
+def test_copc_output_names_the_records_it_leaves_out(tmp_path, caplog):
+    """COPC carries the CRS and the extra dimensions' records only (copclib writes no others): a
+    warning names the rest (they went silently)."""
+    path = legacy_las(tmp_path / "in.las", n=2000)
+    las = laspy.read(path)
+    las.header.vlrs.append(laspy.VLR("someorg", 7, "kept in LAS", b"abc"))
+    las.write(path)
+    with caplog.at_level(logging.WARNING, logger="roadx_ti"):
+        io.write(tmp_path / "out.copc.laz", io.read(path))
+    assert "left out: someorg/7" in caplog.text

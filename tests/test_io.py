@@ -737,3 +737,63 @@ def test_a_header_counting_fewer_points_than_the_file_holds_is_said(tmp_path, ca
         cloud = io.read(path)
     assert cloud.n == 1000
     assert any("header counts 1000 points" in r.getMessage() and "2000 more" in r.getMessage() for r in caplog.records)
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".csv", ".pcd", ".npz"])
+def test_las_to_other_formats_keeps_every_las_field(tmp_path, suffix):
+    """GPS time, scan angle, user data, point source, the flag bits and NIR travel as columns of the
+    same names (PDAL's writers carry every dimension; they were left out silently)."""
+    rng = np.random.default_rng(5)
+    n = 300
+    header = laspy.LasHeader(point_format=8, version="1.4")
+    header.scales, header.offsets = np.full(3, 0.01), np.array([500000.0, 4500000.0, 0.0])
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = 500000 + rng.uniform(0, 20, n), 4500000 + rng.uniform(0, 20, n), rng.uniform(0, 5, n)
+    fields = {"gps_time": rng.uniform(0, 1e6, n), "scan_angle": rng.integers(-3000, 3000, n),
+              "user_data": rng.integers(0, 256, n), "point_source_id": rng.integers(0, 65535, n),
+              "synthetic": rng.integers(0, 2, n), "withheld": rng.integers(0, 2, n),
+              "scanner_channel": rng.integers(0, 4, n), "edge_of_flight_line": rng.integers(0, 2, n),
+              "nir": rng.integers(0, 65535, n)}
+    for name, values in fields.items():
+        las[name] = values
+    las.red, las.green, las.blue = (rng.integers(0, 65535, n) for _ in range(3))
+    las.write(tmp_path / "in.las")
+    io.write(tmp_path / f"out{suffix}", io.read(tmp_path / "in.las"))
+    back = io.read(tmp_path / f"out{suffix}")
+    for name, values in fields.items():
+        got = back.nir if name == "nir" else back.attributes[name]
+        np.testing.assert_allclose(np.asarray(got, np.float64), np.asarray(las[name], np.float64), err_msg=name)
+
+
+def _ply_with_faces_first(path, binary: bool, xyz):
+    """A PLY whose face element (list property) comes before its vertex element (valid PLY; Open3D
+    and plyfile read it)."""
+    import struct
+    fmt = "binary_little_endian" if binary else "ascii"
+    head = (f"ply\nformat {fmt} 1.0\nelement face 2\nproperty list uchar int vertex_indices\n"
+            f"element vertex {len(xyz)}\nproperty float x\nproperty float y\nproperty float z\nend_header\n")
+    with open(path, "wb") as f:
+        f.write(head.encode())
+        if binary:
+            f.write(struct.pack("<B3i", 3, 0, 1, 2) + struct.pack("<B4i", 4, 0, 1, 2, 3))
+            f.write(np.asarray(xyz, "<f4").tobytes())
+        else:
+            f.write(b"3 0 1 2\n4 0 1 2 3\n" + "".join(f"{x} {y} {z}\n" for x, y, z in xyz).encode())
+
+
+@pytest.mark.parametrize("binary", [False, True])
+def test_a_ply_with_its_faces_before_its_vertices(tmp_path, binary):
+    """Was refused as 'vertex data with list properties' though the vertices hold none."""
+    xyz = np.random.default_rng(1).uniform(0, 10, (50, 3)).astype(np.float32)
+    _ply_with_faces_first(tmp_path / "f.ply", binary, xyz)
+    cloud = io.read(tmp_path / "f.ply")
+    np.testing.assert_array_equal((cloud.xyz.astype(np.float64) + cloud.origin).astype(np.float32), xyz)
+
+
+def test_an_ascii_ply_holding_more_rows_than_declared_says_so(tmp_path, caplog):
+    xyz = np.random.default_rng(2).uniform(0, 10, (50, 3))
+    head = "ply\nformat ascii 1.0\nelement vertex 40\nproperty float x\nproperty float y\nproperty float z\nend_header\n"
+    (tmp_path / "m.ply").write_text(head + "".join(f"{x} {y} {z}\n" for x, y, z in xyz))
+    with caplog.at_level("WARNING", logger="roadx_ti"):
+        assert io.read(tmp_path / "m.ply").n == 40
+    assert "holds 50 data lines, its header declares 40" in caplog.text

@@ -66,7 +66,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def main(args) -> int:
     """Run the `bench` subcommand from parsed ``args``; returns the exit code."""
     if args.render:
-        runs = [json.loads(Path(p).read_text()) for p in args.render]
+        why = _output_problem(args.results, args.plot)
+        if why:
+            print(f"roadx_ti: bench: {why}", file=sys.stderr)
+            return 2
+        runs = []
+        for p in args.render:
+            try:
+                runs.append(json.loads(Path(p).read_text()))
+            except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+                print(f"roadx_ti: bench: --render {p}: not a bench JSON record ({_reason(exc)})", file=sys.stderr)
+                return 2
         results = args.results or BENCH_DIR / "RESULTS.md"
         plot = args.plot or results.with_name("throughput.png")
         write_results(runs, results, plot)
@@ -74,7 +84,7 @@ def main(args) -> int:
         return 0
     plan = _plan(args)
     if isinstance(plan, str):
-        print(f"roadx_ti: {plan}", file=sys.stderr)
+        print(f"roadx_ti: bench: {plan}", file=sys.stderr)
         return 2
     run = execute(plan)
     out_dir = plan["out"]
@@ -106,6 +116,24 @@ def _plan(args) -> dict | str:
     rounds = args.rounds if args.rounds is not None else (1 if quick else 2)
     if rounds < 1:
         return f"--rounds must be >= 1, got {rounds}"
+    if args.sizes is not None and not args.sizes:
+        return "--sizes names no size"
+    known = {impl for stage in stages for impl in _case_impls(stage)}
+    unknown = [i for i in args.impls or [] if i not in known]
+    if unknown:
+        return f"unknown implementation(s) {', '.join(unknown)} of these stages; known: {', '.join(sorted(known))}"
+    stray = [n for n in args.anchor_sizes or [] if n not in sizes]
+    if stray:
+        return f"--anchor-sizes {', '.join(_fmt_points(n) for n in stray)} not among the sizes measured"
+    for flag, value, lowest in (("--threads", args.threads, 1), ("--seed", args.seed, 0)):
+        if value is not None and value < lowest:
+            return f"{flag} must be >= {lowest}, got {value}"
+    for flag, value in (("--budget", budget), ("--timeout", args.timeout)):
+        if value is not None and not (value > 0 and value != float("inf")):
+            return f"{flag} must be a number of seconds > 0, got {value}"
+    why = _output_problem(args.results, args.plot, args.out or DEFAULT_OUT)
+    if why:
+        return why
     return {
         "rounds": rounds,
         "quick": quick, "sizes": sorted(set(sizes)), "stages": stages, "backends": backends,
@@ -114,6 +142,37 @@ def _plan(args) -> dict | str:
         "timeout": args.timeout, "out": args.out or DEFAULT_OUT,
         "command": _command_line(args, sizes, stages, backends),
     }
+
+
+def _case_impls(stage: str) -> list[str]:
+    from roadx_ti.bench.cases import load_case
+
+    case = load_case(stage)
+    return sorted(set(case.IMPLS) | {i for v in getattr(case, "VARIANTS", []) for i in v.get("impls") or []})
+
+
+def _reason(exc: Exception) -> str:
+    return getattr(exc, "strerror", None) or " ".join(str(exc).split())[:120] or type(exc).__name__
+
+
+def _output_problem(results, plot, out_dir=None) -> str | None:
+    """Why the bench could not write its outputs (checked before any case runs), or None."""
+    import os
+
+    if out_dir is not None and Path(out_dir).exists() and not Path(out_dir).is_dir():
+        return f"--out {out_dir}: is a file; the JSON records go into a folder"
+    for flag, path in (("--results", results), ("--plot", plot)):
+        if path is not None and Path(path).is_dir():
+            return f"{flag} {path}: is a folder; give a file name"
+    for flag, path in (("--out", out_dir), ("--results", results), ("--plot", plot)):
+        if path is None:
+            continue
+        folder = Path(path) if flag == "--out" else Path(path).parent
+        while not folder.exists() and folder != folder.parent:
+            folder = folder.parent
+        if not os.access(folder, os.W_OK):
+            return f"{flag} {path}: cannot write in {folder}"
+    return None
 
 
 def _command_line(args, sizes, stages, backends) -> str:

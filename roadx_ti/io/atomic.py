@@ -326,8 +326,8 @@ def atomic_output(path) -> Iterator[Path]:
 
 def _is_write_error(exc: BaseException) -> bool:
     """An I/O failure that a compression library reports as its own type (lazrs: 'IoError: Failed
-    to call write')."""
-    return type(exc).__name__ == "LazrsError" and "IoError" in str(exc)
+    to call write'), or copclib's failed close (io.copc.COPCWriteError)."""
+    return (type(exc).__name__ == "LazrsError" and "IoError" in str(exc)) or type(exc).__name__ == "COPCWriteError"
 
 
 def _write_error_text(exc: BaseException) -> str:

@@ -11,7 +11,8 @@ COPC holds point formats 6-8 only: other formats are converted to the nearest of
 value carried over (the scan angle rank in the 0.006 degree steps of the 1.4 scan angle, the wave
 packet fields of formats 4, 5, 9 and 10 as extra dimensions of the same names). The CRS is
 written as WKT (COPC allows no GeoTIFF keys): the input's WKT record, or the WKT of its GeoTIFF
-keys' EPSG codes. Other VLRs of the input are not carried (copclib writes no others).
+keys' EPSG codes. Other VLRs of the input are not carried (copclib writes no others); a warning
+names them.
 """
 from __future__ import annotations
 
@@ -23,11 +24,14 @@ from pathlib import Path
 import laspy
 import numpy as np
 
-from .atomic import InputError, atomic_output, fail
+from .atomic import atomic_output, fail
 
 log = logging.getLogger("roadx_ti")
 
 SUFFIX = ".copc.laz"
+# VLR user ids whose content a COPC output carries: the CRS (as WKT), the extra-bytes
+# descriptions, the COPC records themselves (made anew)
+CARRIED_VLR_USERS = ("LASF_Projection", "LASF_Spec", "copc")
 COPC_FORMAT = {0: 6, 1: 6, 2: 7, 3: 7, 4: 6, 5: 7, 6: 6, 7: 7, 8: 8, 9: 6, 10: 8}
 NODE_GRID = 128            # cells per axis of a node's grid: one point per cell stays in the node
 LEAF_POINTS = 100_000      # a node with at most this many points keeps them all
@@ -131,6 +135,24 @@ def _crs_wkt(header) -> str:
     return crs.to_wkt() if crs is not None else ""
 
 
+class COPCWriteError(RuntimeError):
+    """copclib failed to write (a full disk, an I/O error): atomic_output's one-line write failure."""
+
+
+def _close_failed(writer, tmp) -> None:
+    """After a failed write: the temporary file emptied and closed again. copclib's destructor
+    closes a writer that is not closed, and when that throws the process aborts (std::terminate):
+    a writer whose close fails again is never destroyed (one reference more than Python holds)."""
+    import ctypes
+    import os
+
+    try:
+        os.truncate(tmp, 0)
+        writer.Close()
+    except (OSError, RuntimeError):
+        ctypes.pythonapi.Py_IncRef(ctypes.py_object(writer))
+
+
 def write(path, las: laspy.LasData) -> None:
     """Write ``las`` (its points, in any order) as COPC to ``path``, atomically."""
     why = missing()
@@ -146,6 +168,11 @@ def write(path, las: laspy.LasData) -> None:
         log.warning("%s: COPC holds point formats 6-8: point format %d written as %d, every value "
                     "carried over", path, former, las.point_format.id)
     h = las.header
+    others = [f"{v.user_id}/{v.record_id}" for v in list(h.vlrs) + list(h.evlrs or [])
+              if v.user_id not in CARRIED_VLR_USERS]
+    if others:
+        log.warning("%s: COPC output carries the CRS and the extra dimensions' records only; left out: "
+                    "%s (write .las or .laz to keep every record)", path, ", ".join(others))
     xyz = np.column_stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)])
     lo, hi = xyz.min(axis=0), xyz.max(axis=0)
     center = (lo + hi) / 2
@@ -175,8 +202,9 @@ def write(path, las: laspy.LasData) -> None:
                 d, x, y, z = (int(v) for v in nodes[order[s]])
                 data = np.frombuffer(records[s:e].tobytes(), np.int8)
                 writer.AddNode(copclib.VoxelKey(d, x, y, z), copclib.VectorChar(data))
-        except RuntimeError as exc:
-            raise InputError(f"{path}: copclib could not write the COPC file ({exc})") from None
-        finally:
             writer.Close()
+        except RuntimeError as exc:
+            # a full disk shows as a chunk or the header (written last) failing
+            _close_failed(writer, tmp)
+            raise COPCWriteError("copclib: " + " ".join(str(exc).split())) from None
     log.info("%s: COPC, %d points in %d octree nodes (depth %d)", path, n, len(starts), int(nodes[:, 0].max()))

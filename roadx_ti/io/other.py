@@ -30,6 +30,7 @@ log = logging.getLogger(__name__)
 
 INTENSITY_NAMES = ("intensity", "scalar_intensity", "i")
 CLASS_NAMES = ("classification", "scalar_classification", "class")
+NIR_NAMES = ("nir", "near_infrared", "scalar_nir")
 ORIGIN_REACH = 2.0**16    # m: a PLY's stored origin farther than this from a point is not its points'
                           # (float32 offsets from it would step by 4 mm and more)
 TEXT_ENCODING = "utf-8-sig"     # UTF-8, with or without the byte-order mark spreadsheets write
@@ -39,8 +40,8 @@ RGB_NAMES = (("red", "green", "blue"), ("r", "g", "b"), ("diffuse_red", "diffuse
 # ------------------------------------------------------------------------------ shared helpers
 
 def world_cloud(path, world: np.ndarray, origin, columns: dict) -> Cloud:
-    """A Cloud from float64 world xyz and named per-point columns: colour, intensity and
-    classification are recognised by name (case-insensitive), the rest become attributes."""
+    """A Cloud from float64 world xyz and named per-point columns: colour, intensity,
+    classification and NIR are recognised by name (case-insensitive), the rest become attributes."""
     world = np.asarray(world, dtype=np.float64)
     bad = int(np.count_nonzero(~np.isfinite(world).all(axis=1))) if len(world) else 0
     if bad:
@@ -56,8 +57,9 @@ def world_cloud(path, world: np.ndarray, origin, columns: dict) -> Cloud:
             break
     intensity = _take_integral(columns, lower, INTENSITY_NAMES, np.uint16, taken)
     classification = _take_integral(columns, lower, CLASS_NAMES, np.uint8, taken)
+    nir = _take_integral(columns, lower, NIR_NAMES, np.uint16, taken)
     attributes = {k: np.asarray(v) for k, v in columns.items() if k not in taken}
-    kw = dict(rgb=rgb, color_depth=depth or 0, intensity=intensity, classification=classification,
+    kw = dict(rgb=rgb, color_depth=depth or 0, intensity=intensity, classification=classification, nir=nir,
               returns=_returns(attributes), attributes=attributes, source=str(path))
     return Cloud.from_world(world, origin=origin, **kw)
 
@@ -92,6 +94,11 @@ def _take_integral(columns, lower, names, dtype, taken):
     return None
 
 
+# LAS fields written above as the cloud's own columns (or coordinates)
+LAS_COLUMNS_HELD = {"X", "Y", "Z", "red", "green", "blue", "intensity", "classification", "return_number",
+                    "number_of_returns", "nir"}
+
+
 def writable_columns(cloud: Cloud, classification, extra_dims, subset):
     """World xyz and ordered per-point columns to write (after ``subset``)."""
     n = cloud.n
@@ -115,8 +122,16 @@ def writable_columns(cloud: Cloud, classification, extra_dims, subset):
     if cloud.returns is not None and not {"return_number", "number_of_returns"} & own_columns:
         returns = pick(cloud.returns)
         cols["return_number"], cols["number_of_returns"] = returns[:, 0].copy(), returns[:, 1].copy()
+    if cloud.nir is not None and "nir" not in own_columns:
+        cols["nir"] = pick(np.asarray(cloud.nir, np.uint16))
     extras = dict(cloud.attributes)
     if cloud.las is not None:
+        # the LAS fields the columns above do not hold (GPS time, scan angle, flags, user data,
+        # point source, wave packets), as PDAL's writers carry every dimension
+        for name in cloud.las.point_format.standard_dimension_names:
+            if name not in LAS_COLUMNS_HELD and name not in cols:
+                a = np.asarray(cloud.las[name])
+                cols[name] = pick(a.astype(np.uint8) if a.dtype == bool else a)
         for name in cloud.las.point_format.extra_dimension_names:
             a = np.asarray(cloud.las[name])
             if a.ndim == 2:
@@ -181,7 +196,8 @@ def _ply_header(path, f):
             elif words[0] == "element":
                 elements.append((words[1], int(words[2]), []))
             elif words[0] == "property" and words[1] == "list":
-                elements[-1][2].append((words[-1], "list"))
+                # the count's and the items' types: a binary reader steps over the lists by them
+                elements[-1][2].append((words[-1], "list", PLY_TYPES[words[2]], PLY_TYPES[words[3]]))
             elif words[0] == "property":
                 elements[-1][2].append((words[2], PLY_TYPES[words[1]]))
         except (IndexError, KeyError, ValueError):
@@ -201,7 +217,7 @@ def read_ply(path, origin=None) -> Cloud:
         raise fail(path, "PLY file has no vertex element")
     before = elements[:names.index("vertex")]
     _, count, props = elements[names.index("vertex")]
-    if any(t == "list" for _, t in props) or any(t == "list" for e in before for _, t in e[2]):
+    if any(p[1] == "list" for p in props):
         raise fail(path, "PLY vertex data with list properties is not supported")
     # X Y Z in capitals (some exporters): the coordinates all the same
     axes = {p.lower(): p for p, _ in props if p.lower() in ("x", "y", "z")}
@@ -218,6 +234,7 @@ def read_ply(path, origin=None) -> Cloud:
             raise fail(path, f"corrupt ASCII PLY data ({' '.join(str(exc).split())})") from None
         if len(table) != count or (count and table.shape[1] != len(props)):
             raise fail(path, f"truncated or corrupt PLY file: {count} vertices declared, {len(table)} read")
+        _warn_undeclared_rows(path, start, sum(e[1] for e in elements))
         data = {p: table[:, k].astype(t) for k, (p, t) in enumerate(props)}
         for k, (p, t) in enumerate(props):      # 300 in a uchar property wrapped to 44
             if np.dtype(t).kind in "iu" and not np.array_equal(data[p], table[:, k]):
@@ -225,7 +242,7 @@ def read_ply(path, origin=None) -> Cloud:
                                  f"{table[:, k][data[p] != table[:, k]][0]:g}")
     else:
         order = "<" if fmt == "binary_little_endian" else ">"
-        skip = sum(e[1] * sum(np.dtype(t).itemsize for _, t in e[2]) for e in before)
+        skip = _binary_bytes(path, start, before, order)
         dtype = np.dtype([(p, order + t) for p, t in props])
         raw = np.fromfile(path, dtype=np.uint8, offset=start + skip, count=count * dtype.itemsize)
         if len(raw) != count * dtype.itemsize:
@@ -241,6 +258,40 @@ def read_ply(path, origin=None) -> Cloud:
                         " ".join(f"{v:.10g}" for v in origin))
             origin = None
     return world_cloud(path, world, origin, data)
+
+
+def _binary_bytes(path, start: int, elements, order: str) -> int:
+    """Bytes of the binary rows of ``elements`` (read from ``start``): fixed rows counted, rows
+    with lists (faces before the vertices) stepped over one by one."""
+    if not any(p[1] == "list" for e in elements for p in e[2]):
+        return sum(e[1] * sum(np.dtype(t).itemsize for _, t in e[2]) for e in elements)
+    import struct
+
+    with open(path, "rb") as f:
+        f.seek(start)
+        for _, count, props in elements:
+            for _ in range(count):
+                for p in props:
+                    if p[1] != "list":
+                        f.seek(np.dtype(p[1]).itemsize, 1)
+                        continue
+                    size = np.dtype(p[2]).itemsize
+                    raw = f.read(size)
+                    if len(raw) != size:
+                        raise fail(path, "truncated PLY file (in an element before the vertices)")
+                    items = struct.unpack(order + np.dtype(p[2]).char, raw)[0]
+                    f.seek(int(items) * np.dtype(p[3]).itemsize, 1)
+        return f.tell() - start
+
+
+def _warn_undeclared_rows(path, start: int, declared: int) -> None:
+    """An ASCII PLY holding more data lines than its elements declare: the rest is not read (as
+    other readers do), which a warning says."""
+    with open(path, "rb") as f:
+        f.seek(start)
+        rows = sum(1 for line in f if line.strip())
+    if rows > declared:
+        log.warning("%s: holds %d data lines, its header declares %d; the rest is not read", path, rows, declared)
 
 
 def _ascii_after(path, start: int, skip_lines: int) -> dict:
@@ -296,8 +347,14 @@ def _ply_storable(path, name: str, a: np.ndarray) -> np.ndarray:
 
 # ------------------------------------------------------------------------------------------ PCD
 
+PCD_DATA = ("ascii", "binary", "binary_compressed")
+PCD_NORMALS = ("normal_x", "normal_y", "normal_z")
+
+
 def _pcd_count(path) -> int:
-    count = None
+    """The point count of a PCD header, after the checks Open3D's reader lacks (a partial normal
+    field set crashes the process in Open3D 0.19)."""
+    count, fields, data = None, None, None
     with open(path, "rb") as f:
         for _ in range(64):
             words = f.readline().decode("ascii", "replace").split()
@@ -305,10 +362,21 @@ def _pcd_count(path) -> int:
                 continue
             if words[0] == "POINTS":
                 count = int(words[1])
+            if words[0] == "FIELDS":
+                fields = words[1:]
             if words[0] == "DATA":
+                data = words[1] if len(words) > 1 else ""
                 break
     if count is None:
         raise fail(path, "not a PCD file (no POINTS line in the header)")
+    if fields is not None and not {"x", "y", "z"} <= set(fields):
+        raise fail(path, f"PCD file without x y z fields (FIELDS {' '.join(fields)})")
+    normals = [name for name in PCD_NORMALS if name in (fields or ())]
+    if normals and len(normals) < 3:
+        raise fail(path, f"PCD file with {' '.join(normals)} but not all of {' '.join(PCD_NORMALS)}: "
+                         "Open3D reads normals as a set of three; rename the field or add the others")
+    if data is not None and data.lower() not in PCD_DATA:
+        raise fail(path, f"PCD DATA {data!r} is none of {', '.join(PCD_DATA)}")
     return count
 
 
@@ -400,6 +468,13 @@ def read_npz(path, origin=None) -> Cloud:
         raise fail(path, f"NPZ 'color_depth' must be one number, 8 or 16 (0: no colour), got {depth!r}")
     rgb, depth = arrays.pop("rgb", None), int(depth)
     intensity, classes = arrays.pop("intensity", None), arrays.pop("classification", None)
+    nir = arrays.pop("nir", None) if "nir" in arrays and arrays["nir"].shape == (n,) else None
+    for key, a, top in (("rgb", rgb, 255 if depth == 8 else 65535), ("intensity", intensity, 65535),
+                        ("classification", classes, 255), ("nir", nir, 65535)):
+        # the fields are integers: 2.7 as a class or 300 as 8-bit colour would be cut silently
+        if a is not None and a.size and (not np.all(np.isfinite(a)) or np.any(a != np.round(a))
+                                         or a.min() < 0 or a.max() > top):
+            raise fail(path, f"NPZ array {key!r} must hold whole numbers 0-{top} (e.g. {_example_value(a, top)})")
     attributes = {k: v for k, v in arrays.items() if v.ndim == 1 and len(v) == n}
     bad = int(np.count_nonzero(~np.isfinite(world).all(axis=1))) if n else 0
     if bad:
@@ -414,7 +489,15 @@ def read_npz(path, origin=None) -> Cloud:
                  color_depth=depth if rgb is not None else 0,
                  intensity=None if intensity is None else intensity.astype(np.uint16),
                  classification=None if classes is None else classes.astype(np.uint8),
+                 nir=None if nir is None else nir.astype(np.uint16),
                  returns=_returns(attributes), attributes=attributes, source=str(path))
+
+
+def _example_value(a: np.ndarray, top: int) -> str:
+    """One value of ``a`` that is not a whole number 0-``top``."""
+    flat = np.asarray(a).reshape(-1)
+    bad = ~np.isfinite(flat) | (flat != np.round(flat)) | (flat < 0) | (flat > top)
+    return f"{flat[np.flatnonzero(bad)[0]]:g}"
 
 
 def write_npz(path, cloud: Cloud, classification=None, extra_dims=None, subset=None) -> None:

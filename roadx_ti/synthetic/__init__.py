@@ -57,6 +57,9 @@ __all__ = ["KINDS", "ORIGINS", "MIN_POINTS", "SCENES", "generate", "CLASS_OTHER"
            "CLASS_ROAD", "CLASS_HIGH_NOISE"]
 
 
+MAX_SIDE = 2000.0   # m: the largest scene laid out (the layout's time and memory grow with its area)
+
+
 def generate(kind: str, n_points: int, seed: int = 0, density: float | None = None) -> Cloud:
     """A synthetic labelled scene of exactly ``n_points`` points (see the module docstring).
     ``density``: points per m2 of the scene's square (its side sqrt(n_points / density), never under
@@ -71,6 +74,10 @@ def generate(kind: str, n_points: int, seed: int = 0, density: float | None = No
     n, seed = int(n_points), int(seed)
     scene_cls = SCENES[kind]
     side = scene_cls.side_for(n, seed) if density is None else max(math.sqrt(n / float(density)), scene_cls.BLOCK)
+    if density is not None and side > MAX_SIDE:
+        raise ValueError(f"{n:,} points at {density:g} points per m2 would be a scene {side / 1000:,.1f} km across, "
+                         f"more than the {MAX_SIDE / 1000:g} km laid out at most (its streets and houses are laid "
+                         f"out whole): give a density of at least {n / MAX_SIDE ** 2:.3g} points per m2")
     scene = scene_cls(side, seed)
     xyz, rgb8, intensity, cls = scene.sample_exact(n, scene_cls.OUTLIER_FRACTION)
     rgb16 = (np.clip(np.rint(rgb8), 0, 255).astype(np.uint16) * np.uint16(257))

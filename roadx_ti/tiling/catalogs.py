@@ -90,10 +90,20 @@ def catalog(inputs, warn: bool = True) -> list[CatalogFile]:
             paths.append(str(p))
     if not paths:
         raise io.InputError("no input files given")
-    if len(set(os.path.realpath(p) for p in paths)) != len(paths):
+    if len(set(_identity(p) for p in paths)) != len(paths):
         raise io.InputError(f"the same input file is named twice in {paths}")
     return [CatalogFile(path, tuple(float(b) for b in bounds), int(count), tuple(float(z) for z in z_range))
             for path, bounds, count, z_range in io.read_headers(paths)]
+
+
+def _identity(path: str):
+    """What makes two names one file: its device and inode (a hard link, a symbolic link, another
+    spelling), or its real path where it cannot be looked at (a missing file says so later)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return os.path.realpath(path)
+    return st.st_dev, st.st_ino
 
 
 def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> None:

@@ -58,8 +58,8 @@ def _reachable(address: str, timeout: float) -> None:
 
     if not address.startswith("tcp://"):
         return
-    parts = urlsplit(address)
     try:
+        parts = urlsplit(address)      # 'tcp://[::1' raises here: Invalid IPv6 URL
         port = parts.port
     except ValueError:
         raise ClusterError(f"--scheduler {address}: not a tcp://HOST:PORT address") from None
