@@ -150,6 +150,8 @@ def main(argv: list[str] | None = None) -> int:
     from roadx_ti.io import InputError
 
     previous = _terminate_like_interrupt()
+    from roadx_ti.io.atomic import RENAMED
+    RENAMED.clear()          # main() may run more than once in a process (tests, embedding)
     try:
         with warnings.catch_warnings():
             # numpy's RuntimeWarning / UserWarning on absurd values (a header offset of 1e308, an
@@ -171,10 +173,10 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.close()
         return EXIT_OK
     except Terminated as exc:
-        print(f"roadx_ti: stopped by {exc.name}; no partial output was left", file=sys.stderr)
+        print(f"roadx_ti: stopped by {exc.name}; {_left_behind()}", file=sys.stderr)
         return 128 + exc.number
     except KeyboardInterrupt:
-        print("roadx_ti: interrupted; no partial output was left", file=sys.stderr)
+        print(f"roadx_ti: interrupted; {_left_behind()}", file=sys.stderr)
         return 130
     except MemoryError:
         print("roadx_ti: out of memory; run in tiles (--tile-size) or on fewer points", file=sys.stderr)
@@ -196,8 +198,19 @@ _RECEIVED: list = []     # termination signals received during this main()
 
 
 def _stopped_by(number: int) -> int:
-    print(f"roadx_ti: stopped by {Terminated(number).name}; no partial output was left", file=sys.stderr)
+    print(f"roadx_ti: stopped by {Terminated(number).name}; {_left_behind()}", file=sys.stderr)
     return 128 + number
+
+
+def _left_behind() -> str:
+    """What a stopped run leaves: no partial file, and the outputs it completed before the signal
+    (a signal held while a run's files were renamed arrives after them: they are the new ones)."""
+    from roadx_ti.io.atomic import RENAMED
+
+    if not RENAMED:
+        return "no partial output was left"
+    more = f" and {len(RENAMED) - 1} more" if len(RENAMED) > 1 else ""
+    return f"no partial output was left; complete before it: {RENAMED[-1]}{more}"
 
 
 class Terminated(BaseException):

@@ -258,3 +258,26 @@ def test_point_counts_are_whole_numbers():
     for text in ("1.5", "1.0005k", "-3", "x"):
         with pytest.raises(argparse.ArgumentTypeError):
             parse_point_count(text)
+
+
+def test_ctrl_c_arriving_after_the_outputs_were_renamed_says_they_are_complete(tmp_path, monkeypatch, capsys):
+    """Signals wait while a run's files are renamed together; one held there arrives after the
+    renames. The run then stops with the new outputs complete, which the line says (it said only
+    'no partial output was left', read as 'nothing changed')."""
+    from roadx_ti import cli
+    from roadx_ti.io import atomic
+    src = write_las(tmp_path / "small.las", bumpy_ground(3000))
+    config = write_tiny_config(tmp_path)
+    out = tmp_path / "result.laz"
+    commit = atomic._Group.commit
+
+    def commit_then_interrupt(self):
+        commit(self)
+        raise KeyboardInterrupt
+    monkeypatch.setattr(atomic._Group, "commit", commit_then_interrupt)
+    code = cli.main(["run", str(config), "--backend", "cpu", "--quiet", "--input", str(src), "--output", str(out)])
+    assert code == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "complete before it:" in err[0] and "result" in err[0], err
+    assert out.is_file() and out.with_suffix(".summary.json").is_file()
+    assert not [p for p in tmp_path.iterdir() if ".partial" in p.name]

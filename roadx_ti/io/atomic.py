@@ -208,6 +208,7 @@ class _Group:
             while self.pending:
                 tmp, dest = self.pending[0]
                 os.replace(tmp, dest)
+                RENAMED.append(dest)
                 self.pending.pop(0)
                 if dest.parent not in folders:
                     folders.append(dest.parent)
@@ -278,6 +279,11 @@ def _signals_held():
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
+# the outputs renamed into place, complete, in this process (an interrupt arriving after a group's
+# renames, which hold signals, is reported with them: the run's files are the new ones)
+RENAMED: list = []
+
+
 def _open_group():
     stack = _stack()
     return stack[-1] if stack else None
@@ -308,6 +314,7 @@ def atomic_output(path) -> Iterator[Path]:
         group = _open_group()
         if group is None:
             os.replace(tmp, dest)
+            RENAMED.append(dest)
         else:
             group.pending.append((tmp, dest))    # renamed when the group commits
     except BaseException as exc:
