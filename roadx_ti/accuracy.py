@@ -1153,6 +1153,20 @@ NOTES = {
         "reads narrow; the reviewed tile thinned 0.9945 -> 0). The tile's half-density agreement stays "
         "96.22 % (its flips are straight hedge pieces at the area and width thresholds, see the note "
         "above).",
+        "Hedges joined to low roofs, two shape rules measured and not adopted (2026-12-07, at 4959d9c; "
+        "the kept segments under narrow_max_height of the six IGN tiles, the merged and thinned blocks, "
+        "the reviewed tile, ign_870000, sample_c, AHN3 and synthetic 300 k seeds 0-2 and 9, scored point "
+        "by point against the truth): (1) parts of a segment's plan footprint that an opening by a disc "
+        "of min_roof_width leaves out (cells of half the spacing, components of at least 3 m2): every "
+        "piece cut on the real files was roof (truth share 0.95-1.00: narrow wings, porches and eaves of "
+        "garages), 0.97-1.00 on the synthetic ones, and the half-density tile 77055_627760, whose flip is"
+        " a hedge grown into a 2.2 m shed roof, has no such piece (the union is a blob, not a roof with "
+        "an arm); (2) points more than max(0.3 m, 6 sigma) above the segment's robust plane (least "
+        "squares, refitted 4 times on |r| < 3 MAD sigmas): only 15 and 45 points, all not roof, on two "
+        "IGN tiles; the 829 + 322 point roof-and-hedge segment of 77060_627760 has its hedge points at "
+        "-0.29 / 0.05 / 0.88 m from the roof plane (5th / 50th / 95th percentile) and the roof's own "
+        "points down to -0.47 m, so no height cut separates them (their multi-return shares 0.39 against "
+        "0.19, curvature 0.0097 against 0.0049: no clean cue either). Tile 77060_627760 stays at 0.9189.",
     ],
 }
 
