@@ -300,7 +300,10 @@ def _cmd_run(args) -> int:
     cfg = config.load(args.config, overrides)
     if args.input:
         cfg.input = config.InputConfig(paths=list(args.input))
-    if args.output:
+    if args.output is not None:
+        why = config.output_name_problem(args.output)
+        if why:
+            raise UsageError(f"--output: {why}")
         cfg.output.path = args.output
     if args.backend:
         cfg.backend = args.backend
@@ -531,7 +534,12 @@ def _run_tiled(cfg, out: Path, args) -> int:
             # one file per input goes into a folder: a name like x.laz was meant as a file
             raise UsageError(f"{out}: output.mode per-file writes one file per input into a folder; "
                              "give a folder (e.g. --output out/) or use output.mode merged for one file")
-        out.mkdir(parents=True, exist_ok=True)
+        if out.exists() and not out.is_dir():
+            raise UsageError(f"{out}: is a file; output.mode per-file writes one file per input into a folder")
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise DataError(f"{out}: cannot create the output folder: {exc.strerror}") from None
     try:
         summary = tiling.run_catalog(cfg, cfg.input.paths, out, workers=cfg.executor.workers,
                                      scheduler=cfg.executor.scheduler, tile_size=cfg.tiling.tile_size,

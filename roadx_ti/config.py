@@ -7,6 +7,7 @@ position (``stages.1.k=30``, or both: ``stages.1.sor.k=30``).
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any, Literal, Union
 
@@ -44,6 +45,14 @@ class OutputConfig(_Strict):
         "skipped by downsampling and for records repeating another's x, y, z); processed: only the "
         "points the stages worked on (neither skipped nor a repeat)")
     report_png: bool = Field(True, description="write a top-view PNG beside the output")
+
+    @field_validator("path")
+    @classmethod
+    def _a_file_name(cls, value):
+        why = output_name_problem(value)
+        if why:
+            raise ValueError(why)
+        return value
     dtm: str | bool | None = Field(None, description="write the cloth of the last cloth stage as a DTM "
                                    "raster: a path (.tif/.tiff GeoTIFF with the input's CRS, .asc ESRI "
                                    "ASCII grid + .prj, .npy + .json transform); true: NAME.dtm.tif beside "
@@ -190,7 +199,10 @@ class RunConfig(_Strict):
     @property
     def tiled(self) -> bool:
         """Whether the run goes through the tiling engine (several inputs, a folder, or asked)."""
-        return (self.tiling.enabled or self.tiling.tile_size is not None or len(self.input.paths) > 1
+        # --tile-size inf on one file is an untiled run (the tiling engine's one tile lays its cloth
+        # on a world lattice, not the file's own box: other labels)
+        finite_tiles = self.tiling.tile_size is not None and math.isfinite(self.tiling.tile_size)
+        return (self.tiling.enabled or finite_tiles or len(self.input.paths) > 1
                 or any(Path(p).is_dir() for p in self.input.paths)
                 or self.executor.workers is not None or bool(self.executor.scheduler))
 
@@ -207,6 +219,15 @@ class RunConfig(_Strict):
     @property
     def truth_classes(self) -> list[int]:
         return self.evaluate.truth_classes or [PIPELINE_TARGET[self.pipeline]]
+
+
+def output_name_problem(path) -> str | None:
+    """Why ``path`` cannot name an output file ('' or a path ending in '.' / '..'), or None."""
+    if not str(path).strip():
+        return "the output path is empty"
+    if Path(path).name in ("", ".", ".."):
+        return f"{path!r} names a folder, not an output file (e.g. {Path(path) / 'result.laz'})"
+    return None
 
 
 def output_stem(path) -> Path:

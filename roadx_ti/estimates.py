@@ -255,7 +255,9 @@ class CellCounts:
 
 
 def _merge_counts(parts: list) -> tuple[np.ndarray, np.ndarray]:
-    """(keys, counts) summed over (keys, counts) pieces, each key once, ascending."""
+    """(keys, counts) summed over (keys, counts) pieces, each key once, ascending (none: empty)."""
+    if not parts:               # a catalog's first files hold no point
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     keys = np.concatenate([k for k, _ in parts])
     counts = np.concatenate([c for _, c in parts])
     unique, inverse = np.unique(keys, return_inverse=True)

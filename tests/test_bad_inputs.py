@@ -1017,6 +1017,83 @@ def case_more_local_workers_than_the_machine_runs(d):
                 message="a local cluster of more than")
 
 
+def case_catalog_whose_first_file_is_empty(d):
+    """A catalog folder whose first file (by name) holds no point: the run goes on with the others
+    (the survey estimates stopped at it: 'need at least one array to concatenate', exit 2, and
+    only when the empty file sorted first)."""
+    folder = d / "in" / "tiles"
+    folder.mkdir()
+    write_las(folder / "a_empty.laz", np.zeros((0, 3)), offset=np.array([500000.0, 4500000.0, 0.0]))
+    write_las(folder / "b.laz", bumpy_ground(1500))
+    write_las(folder / "c.laz", bumpy_ground(1500, seed=1) + [25.0, 0, 0])
+
+    def check(c):
+        assert len(laspy.read(c.output).points) == 3000
+    return _run(CONFIGS / "ground.yaml", d, folder, code=0, check=check)
+
+
+def case_catalog_file_with_points_beyond_its_header_box(d):
+    """Two files of a catalog, one whose header box is 8 m short of its points: one line naming the
+    file (the merge said 'tiles 5 and 10 disagree on the points they share', naming none)."""
+    folder = d / "in" / "tiles"
+    folder.mkdir()
+    a = write_las(folder / "a.las", bumpy_ground(3000, side=40.0))
+    write_las(folder / "b.las", bumpy_ground(3000, seed=1, side=40.0) + [40.0, 0, 0])
+    data = bytearray(a.read_bytes())
+    for at in (179, 195):                      # max x, max y of the LAS header
+        value, = struct.unpack_from("<d", data, at)
+        struct.pack_into("<d", data, at, value - 8.0)
+    a.write_bytes(bytes(data))
+    return _run(CONFIGS / "ground.yaml", d, folder, extra=["--tile-size", "20"],
+                message="lie outside the header bounds")
+
+
+def case_output_path_that_names_a_folder(d):
+    """--output . (or a path ending in '..'): one line (was 'unexpected error: ValueError:
+    PosixPath('.') has an empty name')."""
+    src = write_las(d / "in" / "ground.laz", bumpy_ground(1500))
+    case = _run(CONFIGS / "ground.yaml", d, src, code=2, message="names a folder, not an output file")
+    case.args[case.args.index("--output") + 1] = str(d / "out" / "..")
+    return case
+
+
+def case_per_file_output_onto_an_existing_file(d):
+    """output.mode per-file into a path that is an existing file: one line (was 'unexpected error:
+    FileExistsError'); the file is left as it was."""
+    folder = _tiles_folder(d)
+    out = d / "out" / "afile"
+    out.parent.mkdir()
+    out.write_bytes(b"keep me")
+    case = _run(CONFIGS / "ground.yaml", d, folder, output=out, code=2, extra=["--output-mode", "per-file"],
+                message="is a file; output.mode per-file")
+    case.previous = b"keep me"
+    return case
+
+
+def case_memory_limit_below_one_tile(d):
+    """A tiled run under --memory-limit 200M, less than one tile's process needs: one line naming
+    the limit, before any work (every tile failed in its cloth stage with 'more than the 1
+    particles allowed')."""
+    src = write_las(d / "in" / "ground.laz", bumpy_ground(3000, side=60.0))
+    return _run(CONFIGS / "ground.yaml", d, src, code=2, extra=["--memory-limit", "200M", "--tile-size", "30"],
+                message="--memory-limit 200.0 MB: a tile's process needs at least")
+
+
+def case_tile_size_inf_is_the_untiled_run(d):
+    """--tile-size inf (the help's 'untiled') on one file gives the untiled run's labels (it went
+    through the tiling engine, whose cloth lies on a world lattice: other labels)."""
+    src = synth(d / "in" / "road.laz", "30k", seed=4)
+    reference_out = d / "ref" / "untiled.laz"
+
+    def check(c):
+        got = np.asarray(laspy.read(c.output).classification)
+        np.testing.assert_array_equal(got, np.asarray(laspy.read(reference_out).classification))
+    case = _demo(d, src, code=0, extra=["--tile-size", "inf"], check=check)
+    case.reference = ["run", CONFIGS / "demo.yaml", "--backend", "cpu", "--quiet", *DEMO_FAST, "--input", src,
+                      "--output", reference_out]
+    return case
+
+
 CASES = {name[len("case_"):]: fn for name, fn in sorted(globals().items()) if name.startswith("case_")}
 
 

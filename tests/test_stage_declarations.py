@@ -62,6 +62,17 @@ def test_a_stage_needing_data_no_earlier_stage_provides_fails_in_one_line():
         config.from_mapping({"pipeline": "roof", "stages": [{"roof_filter": {}}, {"roof_growing": {}}]})
 
 
+def test_a_stage_that_must_follow_another_directly_fails_in_one_line_when_it_does_not():
+    """roof_growing grows over roof_seeds' kNN graph of the same working points: a stage between
+    them (cloth_ground drops the ground) made it fail mid-run as an 'unexpected error' after the
+    input was read and the earlier stages ran."""
+    with pytest.raises(config.ConfigError, match=r"^config error: stages\[2\] roof_growing must follow roof_seeds "
+                                                 r"directly"):
+        config.from_mapping({"pipeline": "roof", "stages": [{"roof_seeds": {}}, {"cloth_ground": {}},
+                                                            {"roof_growing": {}}, {"roof_filter": {}}]})
+    check_order(stage_class(n) for n in ("cloth_ground", "roof_seeds", "roof_growing", "roof_filter"))
+
+
 def test_wrong_stage_order_stops_the_cli_before_reading_the_input(tmp_path, capsys):
     from roadx_ti import cli
 

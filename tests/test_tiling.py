@@ -493,3 +493,25 @@ def test_a_warning_every_tile_repeats_is_logged_once(tmp_path, caplog):
     summary = tiling.run_catalog(cfg, [str(src)], tmp_path / "out.laz", tile_size=10.0, progress=False)
     assert len(summary["tiles"]) > 1
     assert caplog.text.count("no colour and no intensity") == 1
+
+
+def test_scratch_folders_of_killed_runs_are_removed_and_no_other(tmp_path):
+    """A run killed with SIGKILL leaves its split records (tens of MB per file); the next tiled
+    run under the same folder removes those of dead processes on this host, never a running
+    run's nor another host's (they stayed for good)."""
+    import os
+    import subprocess
+    import sys
+
+    from roadx_ti.io.atomic import host_tag
+    from roadx_ti.tiling.split import FOLDER_PREFIX, remove_stale_folders
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
+                          text=True).stdout.strip()
+    stale = tmp_path / f"{FOLDER_PREFIX}p{dead}-{host_tag()}-abc123"
+    running = tmp_path / f"{FOLDER_PREFIX}p{os.getpid()}-{host_tag()}-def456"
+    elsewhere = tmp_path / f"{FOLDER_PREFIX}p{dead}-otherhost-ghi789"
+    for folder in (stale, running, elsewhere):
+        folder.mkdir()
+        (folder / "t0_f0.rec").write_bytes(b"\0" * 64)
+    assert remove_stale_folders(tmp_path) == [stale]
+    assert not stale.exists() and running.exists() and elsewhere.exists()

@@ -134,6 +134,16 @@ def _temporary_pattern(dest: Path) -> re.Pattern:
                       + re.escape(f".partial{dest.suffix}") + "$")
 
 
+def host_tag() -> str:
+    """This host's name as temporary names carry it (letters, digits, _)."""
+    return _host()
+
+
+def process_alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (on this host); a process of another user counts as alive."""
+    return _alive(pid)
+
+
 def _alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)

@@ -334,16 +334,22 @@ def split_las(path, windows, write) -> None:
         check_structure(path)
         with laspy.open(path) as reader:
             _check_header(path, reader.header)
-            _split_chunks(path, reader, windows, write, SPLIT_CHUNK_POINTS)
+            h = reader.header
+            # a tile plan is laid over the header boxes: points beyond the box went to no tile or
+            # to a tile that did not expect them (the merge then found tiles disagreeing)
+            tol = np.maximum(0.5 * np.asarray(h.scales[:2], np.float64), 0.01)   # bounds rounded by a writer
+            box = (h.mins[0] - tol[0], h.mins[1] - tol[1], h.maxs[0] + tol[0], h.maxs[1] + tol[1])
+            _split_chunks(path, reader, windows, write, SPLIT_CHUNK_POINTS, header_box=box)
     except InputError:
         raise
     except LAS_ERRORS as exc:
         raise _las_error(path, exc) from exc
 
 
-def _split_chunks(path, reader, windows, write, chunk_points: int) -> None:
+def _split_chunks(path, reader, windows, write, chunk_points: int, header_box=None) -> None:
     """The chunk loop of windowed reads and split_las: each window's records, chunk by chunk in
-    file order, to ``write(key, records)``; a truncated file is an InputError."""
+    file order, to ``write(key, records)``; a truncated file is an InputError, and so are points
+    beyond ``header_box`` (xmin, ymin, xmax, ymax) when given."""
     seen = 0
     for chunk in reader.chunk_iterator(chunk_points):
         seen += len(chunk)
@@ -351,6 +357,12 @@ def _split_chunks(path, reader, windows, write, chunk_points: int) -> None:
         if not len(x):
             continue
         lo_x, hi_x, lo_y, hi_y = x.min(), x.max(), y.min(), y.max()
+        if header_box is not None and (lo_x < header_box[0] or lo_y < header_box[1] or hi_x > header_box[2]
+                                       or hi_y > header_box[3]):
+            out = int(np.count_nonzero((x < header_box[0]) | (y < header_box[1]) | (x > header_box[2])
+                                       | (y > header_box[3])))
+            raise fail(path, f"{out} points (in its first {seen} read) lie outside the header bounds, which the "
+                             "tiles are planned on; fix the header (e.g. pdal translate)")
         for key, (xmin, ymin, xmax, ymax) in windows:
             if hi_x < xmin or lo_x >= xmax or hi_y < ymin or lo_y >= ymax:
                 continue

@@ -5,8 +5,9 @@ A Stage subclass declares:
 - ``reach(options, estimates)``: how far (m) its decision about a point depends on other points,
   for the tile buffers of tiled runs (every stage declares one: the base class raises);
 - ``requires`` / ``provides``: the per-point data (``ctx.point_data`` / ``StageResult.point_data``
-  keys, and GROUND_SURFACE) it reads from earlier stages and hands on; ``check_order`` checks them
-  when the pipeline is built, before any input is read;
+  keys, and GROUND_SURFACE) it reads from earlier stages and hands on, and ``right_after``: the
+  stage that must run just before it; ``check_order`` checks them when the pipeline is built,
+  before any input is read;
 - ``writes``: the per-point data of its own that the output carries as extra dimensions;
 - a ground stage provides GROUND_SURFACE: ``export_ground`` puts its surface in ctx.facts, and the
   DTM export (output.dtm) and later stages (height_above_ground) read it from there.
@@ -158,6 +159,8 @@ class Stage:
     requires: ClassVar[tuple[str, ...]] = ()
     # point_data keys (or GROUND_SURFACE) that every result of this stage carries
     provides: ClassVar[tuple[str, ...]] = ()
+    # the stage that must run right before this one (its graph over the same working points)
+    right_after: ClassVar[str | None] = None
     # point_data keys of this stage's result written to the output as extra dimensions (untiled
     # runs; float32, NaN for a point the stage did not see)
     writes: ClassVar[tuple[str, ...]] = ()
@@ -193,11 +196,16 @@ class Stage:
 def check_order(stage_classes) -> None:
     """Raise StageOrderError (one line) when a stage requires data no earlier stage provides."""
     have: set[str] = set()
+    previous = None
     for number, cls in enumerate(stage_classes):
         missing = [key for key in cls.requires if key not in have]
         if missing:
             raise StageOrderError(f"stages[{number}] {cls.name} needs {', '.join(map(repr, missing))} from an "
                                   f"earlier stage ({_makers(missing)}); put it after that stage")
+        if cls.right_after and previous != cls.right_after:
+            raise StageOrderError(f"stages[{number}] {cls.name} must follow {cls.right_after} directly (it works "
+                                  f"on the neighbour graph {cls.right_after} made of the same points); put it right after it")
+        previous = cls.name
         have.update(cls.provides)
 
 

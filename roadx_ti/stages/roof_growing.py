@@ -102,6 +102,7 @@ class RoofGrowing(Stage):
     requires = ("normal", "curvature", "roof_seed")
     # and 'vegetation' when its colour rule or the returns rule ran
     provides = ("roof_segment",)
+    right_after = "roof_seeds"
 
     @classmethod
     def reach(cls, options, estimates=None) -> float:

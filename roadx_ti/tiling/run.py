@@ -101,6 +101,28 @@ def memory_window(cfg, files, survey: dict, workers) -> tuple[float, int]:
                         int(memory.points_that_fit(cfg.pipeline, int(budget), kept) / memory.TILE_OVERHEAD))
 
 
+# points a tile's window must hold at least for a tiled run to be worth starting
+MIN_WINDOW_POINTS = 10_000
+
+
+def _check_memory_limit(cfg, workers) -> None:
+    """A memory limit (--memory-limit) too small for one tile's process: one line before any work
+    (each tile failed in its cloth stage with 'more than the 1 particles allowed')."""
+    import os
+
+    from roadx_ti import memory
+
+    if not os.environ.get(memory.LIMIT_VARIABLE):
+        return
+    budget = memory.run_budget() / max(1, int(workers or 1))
+    if memory.points_that_fit(cfg.pipeline, int(budget)) / memory.TILE_OVERHEAD < MIN_WINDOW_POINTS:
+        least = memory.estimate(cfg.pipeline, int(MIN_WINDOW_POINTS * memory.TILE_OVERHEAD)) * memory.SAFETY
+        per = f" per worker ({workers})" if workers else ""
+        raise ValueError(f"--memory-limit {memory.format_size(memory.run_budget())}: a tile's process needs at "
+                         f"least about {memory.format_size(least * max(1, int(workers or 1)))} (its fixed cost and "
+                         f"{MIN_WINDOW_POINTS:,} points{per}); give more")
+
+
 def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, scheduler: str | None = None,
                 tile_size: float | None = None, buffer: float | None = None, output_mode: str = "merged",
                 progress: bool = True, log=None, summary_path=None, split_dir=None) -> dict:
@@ -127,6 +149,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
         raise ValueError("give workers (a local cluster) or scheduler (an existing one), not both")
     if workers is not None and int(workers) < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
+    _check_memory_limit(cfg, workers)
     files = catalog(input_paths)
     check_compatible(files, merged_las=output_mode == "merged" and Path(output_path).suffix.lower() in (".las", ".laz"),
                      log=log)

@@ -6,6 +6,8 @@ tile's Cloud is the one a windowed read gives, bit for bit. The folder goes when
 from __future__ import annotations
 
 import logging
+import os
+import re
 import shutil
 import tempfile
 import time
@@ -14,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from roadx_ti.io.atomic import host_tag, process_alive
 from roadx_ti.tiling.catalogs import LAS_SUFFIXES, CatalogFile
 from roadx_ti.tiling.plan import TilePlan
 
@@ -65,6 +68,30 @@ class Split:
             raise interrupted
 
 
+def remove_stale_folders(where, log=None) -> list[Path]:
+    """Remove the scratch folders under ``where`` that runs on this host left when they were killed
+    (SIGKILL, the OOM killer: no cleanup ran): named by their pid, which no longer runs. Returns
+    the removed folders. A running run's folder and other hosts' are never touched."""
+    pattern = re.compile(re.escape(FOLDER_PREFIX) + r"p(\d+)-([A-Za-z0-9_]+)-")
+    removed = []
+    try:
+        names = os.listdir(where)
+    except OSError:
+        return removed
+    for name in names:
+        m = pattern.match(name)
+        path = Path(where) / name
+        if not m or m.group(2) != host_tag() or process_alive(int(m.group(1))):
+            continue
+        if path.is_symlink() or not path.is_dir():
+            continue
+        shutil.rmtree(path, ignore_errors=True)
+        removed.append(path)
+    if removed:
+        (log or log_default).info("removed %d scratch folder(s) of killed runs under %s", len(removed), where)
+    return removed
+
+
 def _overlap(a, b) -> float:
     return max(0.0, min(a[2], b[2]) - max(a[0], b[0])) * max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
 
@@ -111,7 +138,9 @@ def split_catalog(plan: TilePlan, files: list[CatalogFile], where, *, log=None) 
         log.warning("not splitting the inputs for the tiles: about %.1f GB of point records would not fit "
                     "in the %.1f GB free under %s; each tile decodes its files itself", need / 1e9, free / 1e9, where)
         return Split(folder=None)
-    split = Split(folder=Path(tempfile.mkdtemp(prefix=FOLDER_PREFIX, dir=where)), files=chosen)
+    remove_stale_folders(where, log)
+    prefix = f"{FOLDER_PREFIX}p{os.getpid()}-{host_tag()}-"
+    split = Split(folder=Path(tempfile.mkdtemp(prefix=prefix, dir=where)), files=chosen)
     try:
         for k in chosen:
             windows = [(t.index, t.window) for t in plan.tiles if k in t.files]
