@@ -1596,21 +1596,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def main(args) -> int:
-    import os
-
     from roadx_ti import backend, jsonio
-    from roadx_ti.cli import UsageError
+    from roadx_ti.cli import make_output_folder
     from roadx_ti.io.atomic import atomic_output
 
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"accuracy: --out {out}: is a file; the report goes into a folder")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UsageError(f"accuracy: --out {out}: cannot make the folder ({exc.strerror or exc})") from None
-    if not os.access(out, os.W_OK):
-        raise UsageError(f"accuracy: --out {out}: cannot write in the folder")
+    make_output_folder(out, "the accuracy report (--out) goes into a folder")
     backend.init(args.backend)
     tasks = ["road", "roof"] if args.task == "all" else [args.task]
     large = _large(args.road_large)

@@ -534,12 +534,7 @@ def _run_tiled(cfg, out: Path, args) -> int:
             # one file per input goes into a folder: a name like x.laz was meant as a file
             raise UsageError(f"{out}: output.mode per-file writes one file per input into a folder; "
                              "give a folder (e.g. --output out/) or use output.mode merged for one file")
-        if out.exists() and not out.is_dir():
-            raise UsageError(f"{out}: is a file; output.mode per-file writes one file per input into a folder")
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise DataError(f"{out}: cannot create the output folder: {exc.strerror}") from None
+        make_output_folder(out, "output.mode per-file writes one file per input into a folder", DataError)
     try:
         summary = tiling.run_catalog(cfg, cfg.input.paths, out, workers=cfg.executor.workers,
                                      scheduler=cfg.executor.scheduler, tile_size=cfg.tiling.tile_size,
@@ -557,6 +552,19 @@ def _run_tiled(cfg, out: Path, args) -> int:
     log.info("tiled run: %d tiles, %d points written", len(summary.get("tiles", [])),
              summary.get("points_written", 0))
     return EXIT_OK
+
+
+def make_output_folder(folder: Path, purpose: str, error=UsageError) -> None:
+    """Create the output folder ``folder`` (its parents too), or say in one line why not: it is a
+    file (a usage error naming ``purpose``), or it cannot be made or written in (``error``)."""
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"{folder}: is a file; {purpose}")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise error(f"{folder}: cannot create the output folder ({exc.strerror or exc})") from None
+    if not os.access(folder, os.W_OK):
+        raise error(f"{folder}: cannot write in the output folder")
 
 
 def _make_parent(out: Path) -> None:

@@ -165,7 +165,7 @@ def test_command_line_mistakes_are_one_line(tmp_path, args, said):
     (["bench", "--quick", "--results", "."], "--results .: is a folder"),
     (["bench", "--render", "missing.json"], "--render missing.json: not a bench JSON record"),
     (["bench", "--render", "a_file"], "--render a_file: not a bench JSON record"),   # UnicodeDecodeError
-    (["accuracy", "--task", "roof", "--out", "a_file"], "--out a_file: is a file"),  # FileExistsError
+    (["accuracy", "--task", "roof", "--out", "a_file"], "a_file: is a file; the accuracy report"),  # FileExistsError
     (["synth", "--kind", "uav-road", "--points", "1000", "--density", "1e-9", "-o", "x.laz"],
      "would be a scene 1,000.0 km across"),                                        # laid out for minutes
     (["run", str(REPO / "configs" / "ground.yaml"), "--input", "x.laz", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"],
