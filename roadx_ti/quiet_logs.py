@@ -1,4 +1,5 @@
-"""Loggers of other libraries kept quiet for a while (their messages would repeat ours)."""
+"""Log lines kept from repeating: other libraries' loggers quiet for a while (their messages would
+repeat ours), and the same warning of every tile said once."""
 from __future__ import annotations
 
 import contextlib
@@ -22,3 +23,21 @@ def quieted(names, level: int):
         finally:
             for logger, previous in zip(loggers, levels):
                 logger.setLevel(previous)
+
+
+class FirstOfEachWarning(logging.Filter):
+    """Every tile runs the same stages, which warn of the same thing in each (no colour, k above the
+    points): each warning's first occurrence only, whatever its numbers."""
+
+    def __init__(self):
+        super().__init__()
+        self.seen = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.levelno != logging.WARNING:
+            return True
+        key = str(record.msg)          # the message's template: the same warning with other numbers
+        if key in self.seen:
+            return False
+        self.seen.add(key)
+        return True

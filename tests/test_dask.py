@@ -329,3 +329,19 @@ def test_ctrl_c_during_a_run_with_workers_says_one_line(tmp_path):
     assert "Traceback" not in rest and said == ["roadx_ti: interrupted; no partial output was left"], rest
     assert sha256(out) == before
     assert sorted(p.name for p in out.parent.iterdir()) == ["r.laz"]
+
+
+def test_stage_warnings_of_the_workers_are_the_clis_lines_each_once_per_worker(tmp_path):
+    """Each tile's stages warn alike (a 60 k road scene at 20 points/m2: its height noise blurs
+    kerbs): the workers said it once per tile through Python's last-resort handler, without the
+    'roadx_ti:' prefix (12 lines for 16 tiles); now once per worker, prefixed."""
+    from cli_helpers import run_cli
+    src = tmp_path / "street.laz"
+    assert run_cli("synth", "--kind", "uav-road", "--points", "60k", "--seed", "3", "--density", "20",
+                   "-o", src).returncode == 0
+    proc = run_cli("run", Path(__file__).parents[1] / "configs" / "road_uav.yaml", "--backend", "cpu", "--quiet",
+                   "--input", src, "--output", tmp_path / "r.laz", "--workers", "2", "--tile-size", "25")
+    assert proc.returncode == 0, proc.stderr
+    noise = [line for line in proc.stderr.splitlines() if "kerbs lower than" in line]
+    assert 1 <= len(noise) <= 2 and all(line.startswith("roadx_ti: road_regions: height noise") for line in noise), \
+        proc.stderr

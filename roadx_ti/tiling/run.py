@@ -17,28 +17,12 @@ from roadx_ti.tiling.merge import reconcile_segments, write_outputs
 from roadx_ti.tiling.plan import (MAX_WINDOW_POINTS, Tile, align_tiles, budget_tile_size, catalog_origin, default_tile_size,
                                   plan_tiles, scan_cells, TooManyTiles)
 from roadx_ti.tiling.reach import default_buffer
+from roadx_ti.quiet_logs import FirstOfEachWarning
 from roadx_ti.tiling.split import Split, split_catalog
 from roadx_ti.tiling.tile import TileResult
 
 log_default = logging.getLogger("roadx_ti")
 
-
-class _FirstOfEachWarning(logging.Filter):
-    """Every tile runs the same stages, which warn of the same thing in each (no colour, k above the
-    points): each warning's first occurrence only, whatever its numbers."""
-
-    def __init__(self):
-        super().__init__()
-        self.seen = set()
-
-    def filter(self, record: logging.LogRecord) -> bool:
-        if record.levelno != logging.WARNING:
-            return True
-        key = str(record.msg)          # the message's template: the same warning with other numbers
-        if key in self.seen:
-            return False
-        self.seen.add(key)
-        return True
 
 MODES = ("merged", "per-file")
 MIN_POINTS_PER_TILE = 1000      # a tile size giving (many) fewer points per tile is refused
@@ -232,7 +216,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
             executor, n_workers = "in-process", 1
             jobs = make_jobs(plan, files, stage_specs, backend=cfg.backend, threads=cfg.threads, seed=cfg.seed,
                              survey_estimates=survey, split=split, dtm=dtm_path is not None)
-            once = _FirstOfEachWarning()
+            once = FirstOfEachWarning()
             stage_log = logging.getLogger("roadx_ti")     # the stages' log (StageContext)
             stage_log.addFilter(once)
             try:

@@ -3,8 +3,9 @@
 A terminal's Ctrl-C goes to the whole process group: the workers printed KeyboardInterrupt
 tracebacks of their own while the CLI, which decides what an interrupt means (remove the scratch
 records, keep the previous outputs, one line), closed the cluster. The workers leave SIGINT to it,
-and log only what is critical: a tile's failure reaches the CLI as the task's exception, and a
-closed run's cancelled tasks and lost heartbeats (warnings and tracebacks) tell the user nothing.
+and Dask's logs only what is critical: a tile's failure reaches the CLI as the task's exception, and
+a closed run's cancelled tasks and lost heartbeats (warnings and tracebacks) tell the user nothing.
+The stages' own warnings are said as the CLI says them, each once per worker.
 """
 from __future__ import annotations
 
@@ -15,5 +16,16 @@ import signal
 
 def dask_setup(worker) -> None:
     logging.getLogger("distributed").setLevel(logging.CRITICAL)
+    # the stages' warnings as the CLI says them ('roadx_ti: ...', each once per worker; they went
+    # through Python's last-resort handler, unprefixed, once per tile)
+    from roadx_ti.quiet_logs import FirstOfEachWarning
+
+    handler = logging.StreamHandler()
+    handler.setFormatter(logging.Formatter("roadx_ti: %(message)s"))
+    ours = logging.getLogger("roadx_ti")
+    ours.handlers[:] = [handler]
+    ours.setLevel(logging.WARNING)
+    ours.propagate = False
+    ours.addFilter(FirstOfEachWarning())
     with contextlib.suppress(ValueError):      # not the process's main thread: nothing to change
         signal.signal(signal.SIGINT, signal.SIG_IGN)
