@@ -281,9 +281,39 @@ def _check_distinct_outputs(out: Path, dtm: Path) -> None:
 def cmd_run(args) -> int:
     from roadx_ti.io.atomic import output_group
 
-    # the run's outputs (cloud, summary, config, DTM, picture) replace earlier ones together or not at all
-    with output_group():
-        return _cmd_run(args)
+    # the run's outputs (cloud, summary, config, DTM, picture) replace earlier ones together or not at
+    # all, and the folders made for them go again when the run fails
+    _MADE_FOLDERS.clear()
+    try:
+        with output_group():
+            return _cmd_run(args)
+    except BaseException:
+        _remove_made_folders()
+        raise
+
+
+# output folders this run made (deepest last), removed again when it fails while they are empty
+_MADE_FOLDERS: list = []
+
+
+def _remove_made_folders() -> None:
+    for folder in reversed(_MADE_FOLDERS):
+        try:
+            folder.rmdir()               # only an empty folder goes
+        except OSError:
+            pass
+    _MADE_FOLDERS.clear()
+
+
+def _mkdir(folder: Path) -> None:
+    """``folder.mkdir(parents=True, exist_ok=True)``, noting the folders it makes (_MADE_FOLDERS)."""
+    missing = []
+    at = Path(folder)
+    while not at.exists() and at != at.parent:
+        missing.append(at)
+        at = at.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    _MADE_FOLDERS.extend(reversed(missing))
 
 
 def _cmd_run(args) -> int:
@@ -560,7 +590,7 @@ def make_output_folder(folder: Path, purpose: str, error=UsageError) -> None:
     if folder.exists() and not folder.is_dir():
         raise UsageError(f"{folder}: is a file; {purpose}")
     try:
-        folder.mkdir(parents=True, exist_ok=True)
+        _mkdir(folder)
     except OSError as exc:
         raise error(f"{folder}: cannot create the output folder ({exc.strerror or exc})") from None
     if not os.access(folder, os.W_OK):
@@ -570,7 +600,7 @@ def make_output_folder(folder: Path, purpose: str, error=UsageError) -> None:
 def _make_parent(out: Path) -> None:
     """Create the output's folder, as users of PDAL and friends expect; failures are data errors."""
     try:
-        out.parent.mkdir(parents=True, exist_ok=True)
+        _mkdir(out.parent)
     except OSError as exc:
         raise DataError(f"{out}: cannot create the output folder: {exc.strerror}") from None
 

@@ -281,3 +281,21 @@ def test_ctrl_c_arriving_after_the_outputs_were_renamed_says_they_are_complete(t
     assert len(err) == 1 and "complete before it:" in err[0] and "result" in err[0], err
     assert out.is_file() and out.with_suffix(".summary.json").is_file()
     assert not [p for p in tmp_path.iterdir() if ".partial" in p.name]
+
+
+def test_a_failed_run_removes_the_output_folders_it_made(tmp_path, monkeypatch, capsys):
+    """Output folders are made before the work (as PDAL's users expect); a run failing or
+    interrupted after that left them behind, empty. Folders that existed stay."""
+    from roadx_ti import cli, pipelines
+    src = write_las(tmp_path / "small.las", bumpy_ground(3000))
+    config = write_tiny_config(tmp_path)
+    (tmp_path / "kept").mkdir()
+    out = tmp_path / "kept" / "new" / "deeper" / "result.laz"
+
+    def interrupted(*args, **kwargs):
+        assert out.parent.is_dir()              # made before the work
+        raise KeyboardInterrupt
+    monkeypatch.setattr(pipelines, "run", interrupted)
+    code = cli.main(["run", str(config), "--backend", "cpu", "--quiet", "--input", str(src), "--output", str(out)])
+    assert code == 130
+    assert (tmp_path / "kept").is_dir() and not (tmp_path / "kept" / "new").exists()
