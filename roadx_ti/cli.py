@@ -337,6 +337,8 @@ def _cmd_run(args) -> int:
         cfg.output.path = args.output
     if args.backend:
         cfg.backend = args.backend
+    if args.buffer is not None and not cfg.tiled:
+        log.warning("--buffer is the tiles' buffer; this run is untiled (give --tile-size to tile it)")
     if not cfg.input.paths and cfg.input.synthetic is None:
         raise config.ConfigError("config error: input: give input.paths, input.synthetic or --input PATH")
     cfg.input.paths = _expand_patterns(cfg.input.paths)

@@ -1094,6 +1094,23 @@ def case_tile_size_inf_is_the_untiled_run(d):
     return case
 
 
+def case_buffer_narrower_than_the_stages_reach(d):
+    """--buffer 5 with 30 m tiles: the cloth reaches 30 m, so labels near the borders can differ from
+    the untiled run's; said in a warning (it was accepted silently)."""
+    src = write_las(d / "in" / "ground.laz", bumpy_ground(3000, side=60.0))
+    return _run(CONFIGS / "ground.yaml", d, src, code=0, extra=["--tile-size", "30", "--buffer", "5"],
+                warning="buffer 5 m is less than the stages' reach (30 m, cloth_ground)",
+                check=lambda c: _las_result(c, src, classes={1, 2}))
+
+
+def case_buffer_of_an_untiled_run(d):
+    """--buffer without tiles (one file, no --tile-size): a warning that it does nothing (it was
+    ignored silently)."""
+    src = write_las(d / "in" / "ground.laz", bumpy_ground(1500))
+    return _run(CONFIGS / "ground.yaml", d, src, code=0, extra=["--buffer", "5"],
+                warning="--buffer is the tiles' buffer; this run is untiled", check=lambda c: _las_result(c, src, classes={1, 2}))
+
+
 CASES = {name[len("case_"):]: fn for name, fn in sorted(globals().items()) if name.startswith("case_")}
 
 

@@ -3,6 +3,7 @@ summary."""
 from __future__ import annotations
 
 import logging
+import math
 import os
 import sys
 import time
@@ -142,6 +143,10 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
         raise io.InputError(f"the inputs hold no points: {', '.join(f.path for f in files)}")
     stage_specs = cfg.pipeline_stages()
     auto_buffer, reaches = default_buffer(stage_specs)
+    if buffer is not None and float(buffer) < auto_buffer and (tile_size is None or math.isfinite(float(tile_size))):
+        widest = max(reaches, key=reaches.get)
+        log.warning("buffer %g m is less than the stages' reach (%g m, %s): labels near the tiles' borders may "
+                    "differ from an untiled run's", float(buffer), auto_buffer, widest)
     buffer = auto_buffer if buffer is None else float(buffer)
     plan = None
     if tile_size is not None:      # checked before the estimates' pass over the files
