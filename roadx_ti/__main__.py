@@ -14,10 +14,7 @@ try:
     # Ctrl-C during the imports (a second or so) or before main's own handlers: one line too
     from roadx_ti.cli import main
     code = main()
-except KeyboardInterrupt:
-    print("roadx_ti: interrupted; no output was written", file=sys.stderr)
-    code = 130
-except ImportError as exc:
+except (KeyboardInterrupt, ImportError) as exc:
     if not _interrupted(exc):
         raise
     print("roadx_ti: interrupted; no output was written", file=sys.stderr)

@@ -124,12 +124,9 @@ def _classes(text: str, flag: str) -> list[int]:
 
 
 def _setup_logging(quiet: bool) -> None:
-    handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(logging.Formatter("roadx_ti: %(message)s"))
-    root = logging.getLogger("roadx_ti")
-    root.handlers[:] = [handler]
-    root.setLevel(logging.WARNING if quiet else logging.INFO)
-    root.propagate = False
+    from roadx_ti.quiet_logs import say_as_the_cli
+
+    say_as_the_cli(logging.WARNING if quiet else logging.INFO)
     # libraries' own log lines (laspy on odd headers) would add lines of their own to a one-line
     # message; what matters in them reaches the user through our messages
     for name in ("laspy", "lazrs"):
@@ -505,13 +502,10 @@ def _write_dtm(path: Path, surface, cloud, crs) -> dict:
     the input's CRS ``crs`` (rasterio CRS or None)."""
     from roadx_ti import dtm
 
-    import numpy as np
-
-    heights, t = dtm.grid(surface.largest, surface.origin, cloud.xyz[:, :2])
-    if not np.isfinite(heights).any():
+    t = dtm.write(path, surface.largest, surface.origin, xy=cloud.xyz[:, :2], crs=crs)
+    if t is None:
         log.warning("output.dtm: no cell of the ground surface lies under the points; no DTM written")
         return {"path": None, "reason": "no cell of the ground surface lies under the points"}
-    t = dtm.write_grid(path, heights, t, crs)
     log.info("wrote DTM %s: %d x %d cells of %g m over the occupied area (%d with data)", path,
              t["cols"], t["rows"], t["cell_size"], t["valid_cells"])
     return dtm.summary(path, t, crs)

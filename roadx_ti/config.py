@@ -8,6 +8,7 @@ position (``stages.1.k=30``, or both: ``stages.1.sor.k=30``).
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 from typing import Any, Literal, Union
 
@@ -45,14 +46,6 @@ class OutputConfig(_Strict):
         "skipped by downsampling and for records repeating another's x, y, z); processed: only the "
         "points the stages worked on (neither skipped nor a repeat)")
     report_png: bool = Field(True, description="write a top-view PNG beside the output")
-
-    @field_validator("path")
-    @classmethod
-    def _a_file_name(cls, value):
-        why = output_name_problem(value)
-        if why:
-            raise ValueError(why)
-        return value
     dtm: str | bool | None = Field(None, description="write the cloth of the last cloth stage as a DTM "
                                    "raster: a path (.tif/.tiff GeoTIFF with the input's CRS, .asc ESRI "
                                    "ASCII grid + .prj, .npy + .json transform); true: NAME.dtm.tif beside "
@@ -69,6 +62,14 @@ class OutputConfig(_Strict):
         if isinstance(value, str) and Path(value).suffix.lower() not in DTM_FORMATS:
             raise ValueError("a DTM is written as .tif/.tiff (GeoTIFF), .asc (ESRI ASCII grid + .prj) "
                              "or .npy (+ .json transform)")
+        return value
+
+    @field_validator("path")
+    @classmethod
+    def _a_file_name(cls, value):
+        why = output_name_problem(value)
+        if why:
+            raise ValueError(why)
         return value
 
 
@@ -186,7 +187,7 @@ class RunConfig(_Strict):
         return value
 
     @model_validator(mode="after")
-    def _one_executor(self):
+    def _executor_rules(self):
         if self.executor.workers is not None and self.executor.scheduler:
             raise ValueError("executor: give workers (a local cluster) or scheduler (an existing one), not both")
         workers = self.executor.workers
@@ -248,8 +249,6 @@ WORKERS_PER_CPU = 4    # a local cluster's processes per CPU at most (each holds
 
 
 def max_local_workers() -> int:
-    import os
-
     return WORKERS_PER_CPU * (os.cpu_count() or 1)
 
 

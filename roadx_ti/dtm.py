@@ -166,11 +166,14 @@ def _parts(boxes, gap: float) -> np.ndarray:
     return part
 
 
-def write(path, result, origin, *, xy: np.ndarray | None = None, crs=None) -> dict:
+def write(path, result, origin, *, xy: np.ndarray | None = None, crs=None) -> dict | None:
     """Write the cloth of ``result`` (a ClothResult on a cloud with local ``origin``) to ``path``.
     ``xy``: the cloud's local xy, to crop the raster to the occupied space (None: the whole cloth).
-    ``crs``: a rasterio CRS, or None (the GeoTIFF and .asc then carry none). Returns the transform."""
+    ``crs``: a rasterio CRS, or None (the GeoTIFF and .asc then carry none). Returns the transform,
+    or None (nothing written) when no cell under the points has data."""
     heights, t = grid(result, origin, xy)
+    if not np.isfinite(heights).any():
+        return None
     return write_grid(path, heights, t, crs)
 
 

@@ -25,6 +25,18 @@ def quieted(names, level: int):
                 logger.setLevel(previous)
 
 
+def say_as_the_cli(level: int) -> logging.Logger:
+    """The 'roadx_ti' logger writing 'roadx_ti: MESSAGE' lines to stderr from ``level`` on, and not
+    through the root logger (the CLI's process and the Dask workers it starts)."""
+    handler = logging.StreamHandler()
+    handler.setFormatter(logging.Formatter("roadx_ti: %(message)s"))
+    ours = logging.getLogger("roadx_ti")
+    ours.handlers[:] = [handler]
+    ours.setLevel(level)
+    ours.propagate = False
+    return ours
+
+
 class FirstOfEachWarning(logging.Filter):
     """Every tile runs the same stages, which warn of the same thing in each (no colour, k above the
     points): each warning's first occurrence only, whatever its numbers."""

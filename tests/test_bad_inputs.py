@@ -744,7 +744,7 @@ def case_stale_partial_file_of_a_killed_run(d):
     """The output folder holds the temporary file of a run that was killed (its pid gone): the
     run removes it (the catalogue then finds no partial file), and says so."""
     import subprocess
-    from roadx_ti.io.atomic import _host
+    from roadx_ti.io.atomic import host_tag as _host
     src = _ground_laz(d)
     done = subprocess.Popen([sys.executable, "-c", "pass"])
     done.wait()

@@ -133,7 +133,7 @@ def _dead_pid() -> int:
 
 
 def test_clean_up_removes_only_dead_runs_files_of_its_own_output(tmp_path):
-    from roadx_ti.io.atomic import _host
+    from roadx_ti.io.atomic import host_tag as _host
     src = write_las(tmp_path / "small.las", bumpy_ground(2000))
     config = write_tiny_config(tmp_path)
     out_dir = tmp_path / "out"

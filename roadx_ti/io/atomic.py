@@ -125,7 +125,8 @@ def _umask() -> int:
     return mask
 
 
-def _host() -> str:
+def host_tag() -> str:
+    """This host's name as temporary names carry it (letters, digits, _)."""
     return re.sub(r"[^A-Za-z0-9]", "_", socket.gethostname())[:32] or "host"
 
 
@@ -134,17 +135,8 @@ def _temporary_pattern(dest: Path) -> re.Pattern:
                       + re.escape(f".partial{dest.suffix}") + "$")
 
 
-def host_tag() -> str:
-    """This host's name as temporary names carry it (letters, digits, _)."""
-    return _host()
-
-
 def process_alive(pid: int) -> bool:
     """Whether process ``pid`` runs (on this host); a process of another user counts as alive."""
-    return _alive(pid)
-
-
-def _alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -171,14 +163,14 @@ def remove_stale_temporaries(path) -> list[Path]:
     dest = Path(path)
     if fcntl is None or not dest.parent.is_dir():
         return []
-    pattern, host, removed = _temporary_pattern(dest), _host(), []
+    pattern, host, removed = _temporary_pattern(dest), host_tag(), []
     try:
         names = os.listdir(dest.parent)
     except OSError:
         return []
     for name in names:
         m = pattern.match(name)
-        if not m or m.group(2) != host or _alive(int(m.group(1))):
+        if not m or m.group(2) != host or process_alive(int(m.group(1))):
             continue
         candidate = dest.parent / name
         try:
@@ -309,7 +301,7 @@ def atomic_output(path) -> Iterator[Path]:
     dest = Path(path)
     remove_stale_temporaries(dest)
     try:
-        fd, name = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.stem}.p{os.getpid()}-{_host()}-",
+        fd, name = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.stem}.p{os.getpid()}-{host_tag()}-",
                                     suffix=f".partial{dest.suffix}")
     except OSError as exc:  # e.g. /proc, a read-only mount: the user's path, not a program error
         raise fail(dest, f"cannot create a file in the output folder {dest.parent} "
@@ -341,10 +333,14 @@ def atomic_output(path) -> Iterator[Path]:
         _fsync_path(dest.parent, directory=True)
 
 
+class WriteFailure(RuntimeError):
+    """A writer's own report of a failed write (a full disk, an I/O error): said like an OSError."""
+
+
 def _is_write_error(exc: BaseException) -> bool:
     """An I/O failure that a compression library reports as its own type (lazrs: 'IoError: Failed
-    to call write'), or copclib's failed close (io.copc.COPCWriteError)."""
-    return (type(exc).__name__ == "LazrsError" and "IoError" in str(exc)) or type(exc).__name__ == "COPCWriteError"
+    to call write'), or a WriteFailure (copclib's, io.copc)."""
+    return isinstance(exc, WriteFailure) or (type(exc).__name__ == "LazrsError" and "IoError" in str(exc))
 
 
 def _write_error_text(exc: BaseException) -> str:

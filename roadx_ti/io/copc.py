@@ -24,7 +24,7 @@ from pathlib import Path
 import laspy
 import numpy as np
 
-from .atomic import atomic_output, fail
+from .atomic import WriteFailure, atomic_output, fail
 
 log = logging.getLogger("roadx_ti")
 
@@ -135,10 +135,6 @@ def _crs_wkt(header) -> str:
     return crs.to_wkt() if crs is not None else ""
 
 
-class COPCWriteError(RuntimeError):
-    """copclib failed to write (a full disk, an I/O error): atomic_output's one-line write failure."""
-
-
 def _close_failed(writer, tmp) -> None:
     """After a failed write: the temporary file emptied and closed again. copclib's destructor
     closes a writer that is not closed, and when that throws the process aborts (std::terminate):
@@ -206,5 +202,5 @@ def write(path, las: laspy.LasData) -> None:
         except RuntimeError as exc:
             # a full disk shows as a chunk or the header (written last) failing
             _close_failed(writer, tmp)
-            raise COPCWriteError("copclib: " + " ".join(str(exc).split())) from None
+            raise WriteFailure("copclib: " + " ".join(str(exc).split())) from None
     log.info("%s: COPC, %d points in %d octree nodes (depth %d)", path, n, len(starts), int(nodes[:, 0].max()))

@@ -315,7 +315,7 @@ def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_
     cannot join the first's raises InputError (ending with ``mismatch_hint``)."""
     written = 0
     with atomic_output(path) as tmp:
-        writer = evlrs = None
+        writer = None
         try:
             for i, source in enumerate(sources):
                 seen = 0
@@ -326,7 +326,6 @@ def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_
                         first = _las_from_record(path, laspy.LasData(header, none), 0, *empty)
                         writer = laspy.open(tmp, mode="w", header=first.header,
                                             do_compress=Path(path).suffix.lower() == ".laz")
-                        evlrs = first.header.evlrs
                     for chunk in reader.chunk_iterator(chunk_points):
                         seen += len(chunk)
                         las = _las_from_record(path, laspy.LasData(header, chunk), len(chunk), *labels(i, chunk))
@@ -338,6 +337,7 @@ def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_
                         written += len(las.points)
                 if on_file is not None:
                     on_file(i, seen)
+            evlrs = first.header.evlrs if writer is not None else None
             if evlrs and writer.header.version.minor >= 4:
                 # the first file's extended VLRs (a WKT CRS, PDAL's metadata, waveform descriptions)
                 # after the points, as LasData.write puts them; laspy's writer leaves them out

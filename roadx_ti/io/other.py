@@ -289,6 +289,11 @@ def _warn_undeclared_rows(path, start: int, declared: int) -> None:
     other readers do), which a warning says."""
     with open(path, "rb") as f:
         f.seek(start)
+        # newlines counted in blocks (fast); blank lines counted out only when there may be more
+        lines = sum(block.count(b"\n") for block in iter(lambda: f.read(1 << 24), b""))
+        f.seek(start)
+        if lines + 1 <= declared:       # + 1: a last line without its newline
+            return
         rows = sum(1 for line in f if line.strip())
     if rows > declared:
         log.warning("%s: holds %d data lines, its header declares %d; the rest is not read", path, rows, declared)
@@ -472,9 +477,10 @@ def read_npz(path, origin=None) -> Cloud:
     for key, a, top in (("rgb", rgb, 255 if depth == 8 else 65535), ("intensity", intensity, 65535),
                         ("classification", classes, 255), ("nir", nir, 65535)):
         # the fields are integers: 2.7 as a class or 300 as 8-bit colour would be cut silently
-        if a is not None and a.size and (not np.all(np.isfinite(a)) or np.any(a != np.round(a))
-                                         or a.min() < 0 or a.max() > top):
-            raise fail(path, f"NPZ array {key!r} must hold whole numbers 0-{top} (e.g. {_example_value(a, top)})")
+        bad = _not_whole(a, top) if a is not None else None
+        if bad is not None and bad.any():
+            raise fail(path, f"NPZ array {key!r} must hold whole numbers 0-{top} (e.g. "
+                             f"{np.asarray(a).reshape(-1)[np.flatnonzero(bad)[0]]:g})")
     attributes = {k: v for k, v in arrays.items() if v.ndim == 1 and len(v) == n}
     bad = int(np.count_nonzero(~np.isfinite(world).all(axis=1))) if n else 0
     if bad:
@@ -493,11 +499,10 @@ def read_npz(path, origin=None) -> Cloud:
                  returns=_returns(attributes), attributes=attributes, source=str(path))
 
 
-def _example_value(a: np.ndarray, top: int) -> str:
-    """One value of ``a`` that is not a whole number 0-``top``."""
+def _not_whole(a: np.ndarray, top: int) -> np.ndarray:
+    """bool per value of ``a`` (flattened): not a whole number 0-``top``."""
     flat = np.asarray(a).reshape(-1)
-    bad = ~np.isfinite(flat) | (flat != np.round(flat)) | (flat < 0) | (flat > top)
-    return f"{flat[np.flatnonzero(bad)[0]]:g}"
+    return ~np.isfinite(flat) | (flat != np.round(flat)) | (flat < 0) | (flat > top)
 
 
 def write_npz(path, cloud: Cloud, classification=None, extra_dims=None, subset=None) -> None:

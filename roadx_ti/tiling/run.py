@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from roadx_ti.quiet_logs import FirstOfEachWarning
 from roadx_ti.tiling.catalogs import LAS_SUFFIXES, catalog, check_compatible
 from roadx_ti.tiling.cluster import _DaskSession
 from roadx_ti.tiling.executors import backend_ready, make_jobs, run_in_process, run_on_dask
@@ -18,7 +19,6 @@ from roadx_ti.tiling.merge import reconcile_segments, write_outputs
 from roadx_ti.tiling.plan import (MAX_WINDOW_POINTS, Tile, align_tiles, budget_tile_size, catalog_origin, default_tile_size,
                                   plan_tiles, scan_cells, TooManyTiles)
 from roadx_ti.tiling.reach import default_buffer
-from roadx_ti.quiet_logs import FirstOfEachWarning
 from roadx_ti.tiling.split import Split, split_catalog
 from roadx_ti.tiling.tile import TileResult
 
@@ -93,8 +93,6 @@ MIN_WINDOW_POINTS = 10_000
 def _check_memory_limit(cfg, workers) -> None:
     """A memory limit (--memory-limit) too small for one tile's process: one line before any work
     (each tile failed in its cloth stage with 'more than the 1 particles allowed')."""
-    import os
-
     from roadx_ti import memory
 
     if not os.environ.get(memory.LIMIT_VARIABLE):

@@ -18,14 +18,8 @@ def dask_setup(worker) -> None:
     logging.getLogger("distributed").setLevel(logging.CRITICAL)
     # the stages' warnings as the CLI says them ('roadx_ti: ...', each once per worker; they went
     # through Python's last-resort handler, unprefixed, once per tile)
-    from roadx_ti.quiet_logs import FirstOfEachWarning
+    from roadx_ti.quiet_logs import FirstOfEachWarning, say_as_the_cli
 
-    handler = logging.StreamHandler()
-    handler.setFormatter(logging.Formatter("roadx_ti: %(message)s"))
-    ours = logging.getLogger("roadx_ti")
-    ours.handlers[:] = [handler]
-    ours.setLevel(logging.WARNING)
-    ours.propagate = False
-    ours.addFilter(FirstOfEachWarning())
+    say_as_the_cli(logging.WARNING).addFilter(FirstOfEachWarning())
     with contextlib.suppress(ValueError):      # not the process's main thread: nothing to change
         signal.signal(signal.SIGINT, signal.SIG_IGN)
