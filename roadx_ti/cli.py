@@ -615,6 +615,7 @@ def _expand_patterns(paths: list[str]) -> list[str]:
     """Input paths as given, a wildcard pattern replaced by the files it matches; a path that is
     neither, or a pattern that matches nothing, is a one-line config error."""
     from roadx_ti.config import ConfigError
+    from roadx_ti.tiling.catalogs import pattern_files
 
     out = []
     for p in paths:
@@ -626,7 +627,7 @@ def _expand_patterns(paths: list[str]) -> list[str]:
             raise ConfigError(f"config error: input.paths = {p!r}: no such file")
         if matches == []:
             raise ConfigError(f"config error: input.paths = {p!r}: no file matches the pattern")
-        out.extend([p] if matches is None else matches)
+        out.extend([p] if matches is None else [str(q) for q in pattern_files(p, matches)])
     return out
 
 
@@ -699,14 +700,14 @@ def cmd_info(args) -> int:
     from roadx_ti import io
 
     from roadx_ti.io.describe import text
-    from roadx_ti.tiling.catalogs import folder_files
+    from roadx_ti.tiling.catalogs import folder_files, pattern_files
 
     files = []
     for given in args.path:
         matches = _matches(given)
         if matches == []:
             raise io.InputError(f"{given}: no file matches the pattern")
-        for path in [given] if matches is None else matches:
+        for path in [given] if matches is None else pattern_files(given, matches):
             files.extend(folder_files(Path(path)) if Path(path).is_dir() else [path])
     infos = [io.info(str(f)) for f in files]
     if args.text:

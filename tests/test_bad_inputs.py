@@ -876,6 +876,44 @@ def case_an_earlier_output_in_the_input_folder(d):
                  check=check)
 
 
+def case_an_earlier_output_matched_by_the_pattern(d):
+    """--input 'tiles/*.laz' where an earlier run wrote its merged output beside the tiles: the
+    pattern's matches follow the folder's rule (the output left out with a warning; it joined as a
+    tile, every point twice); the output holds the tiles' points once."""
+    folder = d / "in" / "tiles"
+    folder.mkdir(parents=True)
+    xyz = bumpy_ground(4000, side=40.0)
+    west = xyz[:, 0] < np.median(xyz[:, 0])
+    write_las(folder / "a.laz", xyz[west])
+    write_las(folder / "b.laz", xyz[~west])
+    earlier = laspy.read(write_las(folder / "merged.laz", xyz))
+    earlier.add_extra_dim(laspy.ExtraBytesParams(name="roadx_label", type=np.uint8))
+    earlier.write(folder / "merged.laz")
+
+    def check(c):
+        assert len(laspy.read(c.output).points) == len(xyz)
+    return _tiny(d, folder / "*.laz", code=0, extra=["--tile-size", "25"],
+                 warning="skipped 1 file(s) that roadx_ti wrote", check=check)
+
+
+def case_a_pattern_matching_sidecars(d):
+    """--input 'tiles/*' where a run left its summary JSON, config YAML and picture beside the
+    tiles: the point-cloud files are the catalog, the rest skipped with one warning (they were read
+    as point clouds: the run stopped on the JSON)."""
+    folder = d / "in" / "tiles"
+    folder.mkdir(parents=True)
+    xyz = bumpy_ground(4000, side=40.0)
+    west = xyz[:, 0] < np.median(xyz[:, 0])
+    write_las(folder / "a.laz", xyz[west])
+    write_las(folder / "b.laz", xyz[~west])
+    for name in ("road.summary.json", "road.config.yaml", "road.png"):
+        (folder / name).write_text("{}")
+
+    def check(c):
+        assert len(laspy.read(c.output).points) == len(xyz)
+    return _tiny(d, folder / "*", code=0, warning="skipped 3 other file(s)", check=check)
+
+
 def case_catalog_of_two_point_formats_merged(d):
     """A catalog of a point format 3 and a point format 6 file into one merged LAZ: exit 1 before
     any tile runs (it failed at the merge, after every tile), naming both formats and per-file."""

@@ -29,16 +29,29 @@ def folder_files(folder: Path, warn: bool = True) -> list[Path]:
     holds any, else the files of the point-cloud format it holds most of (ties: io.EXTENSIONS
     order). Other files (a readme.txt, a .prj, a format in the minority) are skipped with one
     warning line; hidden files (a killed run's .partial file, .DS_Store) and sub-folders silently."""
+    entries = sorted(q for q in folder.iterdir() if not q.name.startswith(".") and q.is_file())
+    return point_cloud_files(entries, f"{folder}: folder", str(folder), warn)
+
+
+def pattern_files(pattern: str, matches, warn: bool = True) -> list[Path]:
+    """The point-cloud files among a wildcard pattern's matches (sorted), by folder_files' rules:
+    'tiles/*' skips a run's sidecars (summary JSON, config YAML, picture) and 'tiles/*.laz' a
+    run's own output written beside its tiles (its points would be read twice)."""
+    return point_cloud_files(sorted(Path(m) for m in matches), f"{pattern}: the pattern", pattern, warn)
+
+
+def point_cloud_files(entries: list[Path], holder: str, where: str, warn: bool = True) -> list[Path]:
+    """folder_files' choice among ``entries`` (sorted files); ``holder`` names them in the error
+    when none is a point-cloud file, ``where`` in the warnings."""
     from roadx_ti import io
 
-    entries = sorted(q for q in folder.iterdir() if not q.name.startswith(".") and q.is_file())
     families = {}
     for q in entries:
         suffix = q.suffix.lower()
         if suffix in io.EXTENSIONS:
             families.setdefault("las" if suffix in LAS_SUFFIXES else suffix, []).append(q)
     if not families:
-        raise io.InputError(f"{folder}: folder holds no point-cloud files ({' '.join(io.EXTENSIONS)})")
+        raise io.InputError(f"{holder} holds no point-cloud files ({' '.join(io.EXTENSIONS)})")
     order = ["las"] + [s for s in io.EXTENSIONS if s not in LAS_SUFFIXES]
     chosen = "las" if "las" in families else max(families, key=lambda f: (len(families[f]), -order.index(f)))
     found = families[chosen]
@@ -52,14 +65,14 @@ def folder_files(folder: Path, warn: bool = True) -> list[Path]:
             if warn:
                 shown = ", ".join(q.name for q in ours[:5]) + (f" and {len(ours) - 5} more" if len(ours) > 5 else "")
                 log_default.warning("%s: skipped %d file(s) that roadx_ti wrote (they carry %s): %s; name a "
-                                    "file to process it", folder, len(ours), DECIDED_BY, shown)
+                                    "file to process it", where, len(ours), DECIDED_BY, shown)
             entries = [q for q in entries if q not in ours]
     skipped = [q.name for q in entries if q not in found]
     if skipped and warn:
         kind = "LAS/LAZ" if chosen == "las" else chosen
         shown = ", ".join(skipped[:5]) + (f" and {len(skipped) - 5} more" if len(skipped) > 5 else "")
         log_default.warning("%s: the catalog is its %d %s file(s); skipped %d other file(s): %s",
-                            folder, len(found), kind, len(skipped), shown)
+                            where, len(found), kind, len(skipped), shown)
     return found
 
 
