@@ -856,22 +856,31 @@ def case_las14_count_only_in_the_legacy_field(d):
     return _tiny(d, src, message="its LAS 1.4 point count is 0 but its legacy point count says 3000")
 
 
-def case_an_earlier_output_in_the_input_folder(d):
-    """A catalog folder that holds an earlier run's merged output (--output tiles/merged.laz): the
-    next run of the folder leaves it out with a warning (it would have joined as a tile, every point
-    twice); the output holds the tiles' points once."""
+def _two_tiles(d, earlier_output: bool = False):
+    """(folder in/tiles holding a.laz and b.laz, the west and east halves of one bumpy ground, and
+    a check that the output holds its points once); with ``earlier_output`` also merged.laz, an
+    earlier run's output (all the points, carrying roadx_label)."""
     folder = d / "in" / "tiles"
     folder.mkdir(parents=True)
     xyz = bumpy_ground(4000, side=40.0)
     west = xyz[:, 0] < np.median(xyz[:, 0])
     write_las(folder / "a.laz", xyz[west])
     write_las(folder / "b.laz", xyz[~west])
-    earlier = laspy.read(write_las(folder / "merged.laz", xyz))
-    earlier.add_extra_dim(laspy.ExtraBytesParams(name="roadx_label", type=np.uint8))
-    earlier.write(folder / "merged.laz")
+    if earlier_output:
+        earlier = laspy.read(write_las(folder / "merged.laz", xyz))
+        earlier.add_extra_dim(laspy.ExtraBytesParams(name="roadx_label", type=np.uint8))
+        earlier.write(folder / "merged.laz")
 
     def check(c):
         assert len(laspy.read(c.output).points) == len(xyz)
+    return folder, check
+
+
+def case_an_earlier_output_in_the_input_folder(d):
+    """A catalog folder that holds an earlier run's merged output (--output tiles/merged.laz): the
+    next run of the folder leaves it out with a warning (it would have joined as a tile, every point
+    twice); the output holds the tiles' points once."""
+    folder, check = _two_tiles(d, earlier_output=True)
     return _tiny(d, folder, code=0, extra=["--tile-size", "25"], warning="skipped 1 file(s) that roadx_ti wrote",
                  check=check)
 
@@ -880,18 +889,7 @@ def case_an_earlier_output_matched_by_the_pattern(d):
     """--input 'tiles/*.laz' where an earlier run wrote its merged output beside the tiles: the
     pattern's matches follow the folder's rule (the output left out with a warning; it joined as a
     tile, every point twice); the output holds the tiles' points once."""
-    folder = d / "in" / "tiles"
-    folder.mkdir(parents=True)
-    xyz = bumpy_ground(4000, side=40.0)
-    west = xyz[:, 0] < np.median(xyz[:, 0])
-    write_las(folder / "a.laz", xyz[west])
-    write_las(folder / "b.laz", xyz[~west])
-    earlier = laspy.read(write_las(folder / "merged.laz", xyz))
-    earlier.add_extra_dim(laspy.ExtraBytesParams(name="roadx_label", type=np.uint8))
-    earlier.write(folder / "merged.laz")
-
-    def check(c):
-        assert len(laspy.read(c.output).points) == len(xyz)
+    folder, check = _two_tiles(d, earlier_output=True)
     return _tiny(d, folder / "*.laz", code=0, extra=["--tile-size", "25"],
                  warning="skipped 1 file(s) that roadx_ti wrote", check=check)
 
@@ -900,17 +898,9 @@ def case_a_pattern_matching_sidecars(d):
     """--input 'tiles/*' where a run left its summary JSON, config YAML and picture beside the
     tiles: the point-cloud files are the catalog, the rest skipped with one warning (they were read
     as point clouds: the run stopped on the JSON)."""
-    folder = d / "in" / "tiles"
-    folder.mkdir(parents=True)
-    xyz = bumpy_ground(4000, side=40.0)
-    west = xyz[:, 0] < np.median(xyz[:, 0])
-    write_las(folder / "a.laz", xyz[west])
-    write_las(folder / "b.laz", xyz[~west])
+    folder, check = _two_tiles(d)
     for name in ("road.summary.json", "road.config.yaml", "road.png"):
         (folder / name).write_text("{}")
-
-    def check(c):
-        assert len(laspy.read(c.output).points) == len(xyz)
     return _tiny(d, folder / "*", code=0, warning="skipped 3 other file(s)", check=check)
 
 
