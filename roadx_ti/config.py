@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from pathlib import Path
 from typing import Any, Literal, Union
 
@@ -17,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError,
 
 from roadx_ti import backend as _backend
 from roadx_ti.dtm import FORMATS as DTM_FORMATS
+from roadx_ti.option_rules import number_or_error, shown
 from roadx_ti.stages import REGISTRY, stage_class
 
 
@@ -25,7 +27,14 @@ class ConfigError(ValueError):
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    """Unknown keys are errors; numbers are finite and neither booleans nor texts
+    (roadx_ti.option_rules; a field that means something by infinity allows it itself)."""
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _numbers_are_numbers(cls, value, info):
+        return number_or_error(cls.model_fields[info.field_name].annotation, value)
 
 
 class SyntheticInput(_Strict):
@@ -75,7 +84,7 @@ class OutputConfig(_Strict):
 
 class TilingConfig(_Strict):
     enabled: bool = Field(False, description="run in tiles with buffers even for one input file")
-    tile_size: float | None = Field(None, gt=0, description="core tile edge (m); null: the largest whose "
+    tile_size: float | None = Field(None, gt=0, allow_inf_nan=True, description="core tile edge (m); null: the largest whose "
                                     "window fits the run's memory budget (at most 16 M points); .inf: untiled")
     buffer: float | None = Field(None, ge=0, description="buffer on every side of a tile (m); null: the "
                                  "largest spatial reach of the stages")
@@ -265,7 +274,7 @@ def _one_line(exc: ValidationError, prefix: str = "") -> str:
     same = [e for e in errors if _error_key(e["loc"]) == loc]
     msgs = []
     for err in same:
-        msg = "unknown key" if err["type"] == "extra_forbidden" else err["msg"]
+        msg = "unknown key" if err["type"] == "extra_forbidden" else err["msg"].removeprefix("Value error, ")
         if msg not in msgs:
             msgs.append(msg)
     rest = len(errors) - len(same)
@@ -273,8 +282,8 @@ def _one_line(exc: ValidationError, prefix: str = "") -> str:
     if not key:
         # a rule over several keys (a model validator): its input is the whole config, not worth
         # printing; its message names the keys
-        return "config error: " + ", or ".join(m.removeprefix("Value error, ") for m in msgs) + more
-    return f"config error: {key} = {errors[0].get('input')!r}: {', or '.join(msgs)}{more}"
+        return "config error: " + ", or ".join(msgs) + more
+    return f"config error: {key} = {shown(errors[0].get('input'))}: {', or '.join(msgs)}{more}"
 
 
 def parse_point_count(text: str) -> int:
@@ -298,8 +307,8 @@ def parse_point_count(text: str) -> int:
 def parse_value(text: str):
     """A --set value: YAML scalar syntax (numbers, true/false, null, [lists])."""
     try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError:
+        return yaml.load(text, Loader=_UniqueKeyLoader)
+    except (yaml.YAMLError, ConfigError):
         return text
 
 
@@ -353,6 +362,8 @@ class _UniqueKeyLoader(yaml.SafeLoader):
     def construct_mapping(self, node, deep=False):
         seen = set()
         for key_node, _ in node.value:
+            if key_node.tag == MERGE_TAG:
+                continue    # '<<: *anchor' (SafeLoader merges it; the mapping's own keys win)
             key = self.construct_object(key_node, deep=deep)
             if not isinstance(key, (str, int, float, bool)) and key is not None:   # '? [a, b]': a list key
                 raise ConfigError(f"a {type(key).__name__} as a key is not a name (line {key_node.start_mark.line + 1})")
@@ -360,6 +371,13 @@ class _UniqueKeyLoader(yaml.SafeLoader):
                 raise ConfigError(f"key {key!r} given twice (line {key_node.start_mark.line + 1})")
             seen.add(key)
         return super().construct_mapping(node, deep=deep)
+
+
+MERGE_TAG = "tag:yaml.org,2002:merge"
+# YAML 1.2's floats without a point (1e-3, 2E5): PyYAML (YAML 1.1) reads them as text
+_UniqueKeyLoader.add_implicit_resolver("tag:yaml.org,2002:float",
+                                       re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+                                       list("-+0123456789"))
 
 
 def load(path: str | Path, overrides: list[str] = ()) -> RunConfig:

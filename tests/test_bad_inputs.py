@@ -405,7 +405,65 @@ def case_misspelt_road_weight(d):
     """A misspelt road selection weight (road_regions.weights.colr): exit 2 before the input is
     read, the key named and the known ones listed (it was a TypeError at the road stage)."""
     return _option_refused(d, "demo.yaml", "stages.road_regions.weights.colr=1",
-                           "stages[5].road_regions.weights = {'colr': 1}: Value error, unknown weight 'colr'")
+                           "stages[5].road_regions.weights = {'colr': 1}: unknown weight 'colr'")
+
+
+def case_a_boolean_for_a_count(d):
+    """sor.k = true: exit 2 (pydantic's lax mode ran SOR with k = 1)."""
+    return _option_refused(d, "demo.yaml", "stages.sor.k=true", "stages[1].sor.k = True: must be a number, not True")
+
+
+def case_a_text_for_a_count(d):
+    """sor.k = '20' (quoted in YAML): exit 2 (it ran as the number 20)."""
+    return _option_refused(d, "demo.yaml", "stages.sor.k='20'", "stages[1].sor.k = '20': must be a number, not '20'")
+
+
+def case_booleans_for_classes(d):
+    """evaluate.truth_classes = [true]: exit 2 (it scored against class 1)."""
+    return _option_refused(d, "demo.yaml", "evaluate.truth_classes=[true]", "must be numbers, not True")
+
+
+def case_nan_for_a_threshold(d):
+    """sor.std_ratio = .nan: exit 2 (a NaN threshold passed gt=0's check unseen)."""
+    return _option_refused(d, "demo.yaml", "stages.sor.std_ratio=.nan",
+                           "stages[1].sor.std_ratio = nan: Input should be a finite number")
+
+
+def case_infinite_cloth_resolution(d):
+    """cloth_smooth.cloth_resolution = .inf: exit 2 (a NaN-to-integer error in the cloth kernel)."""
+    return _option_refused(d, "demo.yaml", "stages.cloth_smooth.cloth_resolution=.inf",
+                           "cloth_resolution = inf: Input should be a finite number")
+
+
+def case_a_cell_of_1e_300(d):
+    """grid_slope.step = 1e-300: exit 2, the least cell named (an OverflowError of the cell keys)."""
+    return _option_refused(d, "demo.yaml", "stages.grid_slope.step=1e-300",
+                           "stages[3].grid_slope.step = 1e-300: Input should be greater than or equal to 0.001")
+
+
+def case_a_tile_size_of_1e_300(d):
+    """--tile-size 1e-300: exit 2 with the tile count and a size to use (an OverflowError of the
+    tile plan's cell indices)."""
+    return _tiny(d, _ground_laz(d), extra=["--tile-size", "1e-300"], code=2,
+                 message="--tile-size 1e-300 gives about", max_seconds=60)
+
+
+def case_yaml_merge_key(d):
+    """A config whose stage options merge an anchor (<<: *sor, YAML's merge key): it runs, the
+    stage's own keys over the merged ones (it was 'not valid YAML'); a float written without a
+    point (5e-1) is a number (YAML 1.2; PyYAML read it as text)."""
+    config = d / "merge.yaml"
+    config.write_text("pipeline: road\noutput: {path: out/result.laz, report_png: false}\nstages:\n"
+                      "  - uniform_downsample: &sample {ratio: 1.0}\n"
+                      "  - grid_slope: {step: 5e-1, slope_max: 0.1, dh_max: 1.0}\n"
+                      "  - uniform_downsample: {<<: *sample, ratio: 0.5}\n")
+    src = _ground_laz(d)
+
+    def check(c):
+        assert len(laspy.read(c.output).points) == 3000
+        echoed = (c.output.parent / "result.config.yaml").read_text()
+        assert "ratio: 0.5" in echoed and "step: 0.5" in echoed, echoed
+    return _run(config, d, src, code=0, check=check)
 
 
 def case_road_weight_not_a_number(d):
@@ -424,15 +482,15 @@ def case_roof_reach_beyond_any_building(d):
     """roof_filter.annex_reach = 1e9 m: exit 2 before the input is read (the annex rule spanned
     reach / cell cells around every point and the run was killed for memory)."""
     return _option_refused(d, "roof_als.yaml", "stages.roof_filter.annex_reach=1e9",
-                           "stages[5].roof_filter.annex_reach = '1e9': Input should be less than or equal to 100")
+                           "stages[5].roof_filter.annex_reach = 1000000000.0: Input should be less than or equal to 100")
 
 
 def case_roof_covered_cell_zero(d):
     """roof_growing.covered_cell = 0 (a number or 'auto'): exit 2, both choices named (it was a
     ValueError from the grid)."""
     return _option_refused(d, "roof_als.yaml", "stages.roof_growing.covered_cell=0",
-                           "stages[4].roof_growing.covered_cell = 0: Input should be greater than 0, or Input "
-                           "should be 'auto'")
+                           "stages[4].roof_growing.covered_cell = 0: Input should be greater than or equal to "
+                           "0.001, or Input should be 'auto'")
 
 
 def case_k_larger_than_cloud(d):

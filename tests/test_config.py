@@ -62,7 +62,7 @@ def test_memory_limit_in_bytes_as_a_number():
     ({"threads": 0}, [], "threads = 0"),
     ({"stages": [{"nope": {}}]}, [], "unknown stage 'nope'"),
     (GOOD, ["stages.grid_slope.step=0"], "stages[1].grid_slope.step = 0"),
-    (GOOD, ["stages.grid_slope.step=-1"], "greater than 0"),
+    (GOOD, ["stages.grid_slope.step=-1"], "greater than or equal to 0.001"),
     (GOOD, ["stages.grid_slope.stepp=1"], "stages[1].grid_slope.stepp = 1: unknown key"),
     (GOOD, ["stages.grid_slope.step=abc"], "stages[1].grid_slope.step = 'abc'"),
     (GOOD, ["stages.sor.k=3"], "no stage 'sor'"),

@@ -423,7 +423,9 @@ def test_annex_segments_equal_reference(seed):
     candidate = ~kept & (rng.random(count) < 0.8)
     contact = rng.uniform(0, 0.5, count)
     found = 0
-    for cell, reach in [(1.0, 1.0), (0.5, 1.2), (1.0, 0.0), (0.3, 3.0)]:
+    # (0.001, 3.0): a window of 6,001 x 6,001 cells per candidate cell: all points preselected
+    # (footprint_cell 1e-4 had grown its window past the machine's memory)
+    for cell, reach in [(1.0, 1.0), (0.5, 1.2), (1.0, 0.0), (0.3, 3.0), (0.001, 3.0)]:
         for share in (0.0, contact):
             got = annex_segments(segment, xy, kept, candidate, cell, reach, share)
             np.testing.assert_array_equal(got, reference_annexes(segment, xy, kept, candidate, reach, share))

@@ -23,13 +23,18 @@ from dataclasses import dataclass, field
 from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from roadx_ti.cloud import Cloud
+from roadx_ti.option_rules import number_or_error
 
 # ASPRS classes written by the pipelines
 # an option that is a length or size (> 0) or 'auto' (estimated from the survey)
-PositiveOrAuto = Annotated[float, Field(gt=0)] | Literal["auto"]
+# m: the smallest cell, resolution or grid step an option takes (finer ones overflowed the 64-bit
+# cell keys of a survey's coordinates, or asked for more cells than memory holds)
+MIN_CELL = 0.001
+# a cell size (m) or 'auto'
+PositiveOrAuto = Annotated[float, Field(ge=MIN_CELL)] | Literal["auto"]
 
 CLASS_OTHER = 1
 CLASS_GROUND = 2
@@ -38,8 +43,14 @@ CLASS_ROAD = 11
 
 
 class StageOptions(BaseModel):
-    """Base of every stage's options: unknown keys are errors, values are validated on build."""
-    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+    """Base of every stage's options: unknown keys are errors, values are validated on build:
+    numbers are finite and neither booleans nor texts (roadx_ti.option_rules)."""
+    model_config = ConfigDict(extra="forbid", validate_assignment=True, allow_inf_nan=False)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _numbers_are_numbers(cls, value, info):
+        return number_or_error(cls.model_fields[info.field_name].annotation, value)
 
 
 @dataclass

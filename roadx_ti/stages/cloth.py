@@ -25,7 +25,7 @@ from roadx_ti.cloud import Cloud
 from roadx_ti.errors import DataError
 from roadx_ti.estimates import TERRAIN_CELL, TERRAIN_REACH
 from roadx_ti.kernels.cloth import LATTICE_PERIOD, ClothResult, LatticeTooLarge, csf
-from roadx_ti.stages.base import (CLASS_GROUND, GROUND_NOISE, GROUND_SURFACE, SURVEY_Z_MIN, GroundSurface, Stage,
+from roadx_ti.stages.base import (MIN_CELL, CLASS_GROUND, GROUND_NOISE, GROUND_SURFACE, SURVEY_Z_MIN, GroundSurface, Stage,
                                   StageContext, StageOptions, StageResult, estimate)
 
 # In a tile, the cloth starts above the survey's lowest point (as the whole run's does), but never
@@ -52,7 +52,7 @@ _CSF = {name: p.default for name, p in inspect.signature(csf).parameters.items()
 
 
 class ClothOptions(StageOptions):
-    cloth_resolution: float = Field(_CSF["cloth_resolution"], gt=0, description="C_r: particle spacing "
+    cloth_resolution: float = Field(_CSF["cloth_resolution"], ge=MIN_CELL, description="C_r: particle spacing "
                                     "of the cloth (m)")
     rigidness: Literal[1, 2, 3, "auto"] = Field(_CSF["rigidness"], description="cloth stiffness, 1 (steep "
                                                 "terrain) .. 3 (flat, urban) (constraint passes as in the CSF "
@@ -93,7 +93,7 @@ class ClothGroundOptions(ClothOptions):
 
 class ClothSmoothOptions(ClothOptions):
     # METHODS.md R5 values (paper Table 1): C_r = 2, C_n = 500, C_t = 0.3
-    cloth_resolution: float = Field(2.0, gt=0, description="C_r: particle spacing of the cloth (m); paper 2")
+    cloth_resolution: float = Field(2.0, ge=MIN_CELL, description="C_r: particle spacing of the cloth (m); paper 2")
     class_threshold: float = Field(0.3, gt=0, description="C_t: a point within this distance of "
                                    "the cloth is kept (m); paper 0.3")
 

@@ -18,7 +18,7 @@ from pydantic import Field, model_validator
 from roadx_ti import isolation
 from roadx_ti.chunks import over_chunks
 from roadx_ti.cloud import Cloud
-from roadx_ti.stages.base import (MIN_BUFFER, SAMPLED_SHARE, Stage, StageContext, StageOptions, StageResult,
+from roadx_ti.stages.base import (MIN_CELL, MIN_BUFFER, SAMPLED_SHARE, Stage, StageContext, StageOptions, StageResult,
                                   estimate)
 
 
@@ -34,7 +34,7 @@ class UniformOptions(StageOptions):
         "ratio keeps nearly the same points; hashed: a point is kept when a hash of its coordinates "
         "(in cells of `hash_cell`) is below the ratio: nested too, and the same points whatever "
         "their order or tiling; the count kept is a draw around the target (kernels/downsample.py)")
-    hash_cell: float = Field(0.01, gt=0, description="m: coordinate quantum of the hashed pattern; cell "
+    hash_cell: float = Field(0.01, ge=MIN_CELL, description="m: coordinate quantum of the hashed pattern; cell "
                              "boundaries sit a quarter millimetre off the half-cell so that deliveries at "
                              "1 cm and at 1 mm keep nearly all the same points")
 

@@ -13,11 +13,11 @@ from pydantic import Field, model_validator
 from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.grid_min import slope_filter
-from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult, estimate
+from roadx_ti.stages.base import MIN_CELL, Stage, StageContext, StageOptions, StageResult, estimate
 
 
 class GridSlopeOptions(StageOptions):
-    step: float = Field(0.5, gt=0, description="grid cell edge (m); paper Step = 0.5")
+    step: float = Field(0.5, ge=MIN_CELL, description="grid cell edge (m); paper Step = 0.5")
     slope_max: float = Field(0.1, gt=0, description="S_t: max slope dh / horizontal distance to the "
                              "cell's lowest point (dimensionless); paper 0.1")
     dh_max: float = Field(1.0, gt=0, description="dh_t: max height above the cell's lowest point (m); paper 1")

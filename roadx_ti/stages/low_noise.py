@@ -19,13 +19,13 @@ from pydantic import Field
 
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.outliers import MAX_CLUSTER, low_noise
-from roadx_ti.stages.base import MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
+from roadx_ti.stages.base import MIN_CELL, MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
 
 CLASS_LOW_NOISE = 7     # ASPRS: low point (noise)
 
 
 class LowNoiseOptions(StageOptions):
-    cell: float = Field(10.0, gt=0, description="plan cell edge (m); PDAL filters.elm's default")
+    cell: float = Field(10.0, ge=MIN_CELL, description="plan cell edge (m); PDAL filters.elm's default")
     threshold: float = Field(1.0, ge=0, description="a cell's lowest point is noise when the next "
                              "lowest lies more than this above it (m); PDAL filters.elm's default")
     max_cluster: int = Field(2, ge=1, le=MAX_CLUSTER, description="at most this many low points "

@@ -35,7 +35,7 @@ from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.ransac import SAMPLE_SIZE, fit_plane
 from roadx_ti.segments import segment_medians
 from roadx_ti.sorted_keys import find
-from roadx_ti.stages.base import Stage, StageContext, StageOptions, StageResult
+from roadx_ti.stages.base import MIN_CELL, Stage, StageContext, StageOptions, StageResult
 
 MAX_FOOTPRINT_CELLS = 1 << 24    # a plane's plan raster for filling its holes (larger: holes count as outline)
 MAX_HYPOTHESES = 100_000    # 100 times the paper's 1000: about a second per plane search here
@@ -54,7 +54,7 @@ class RansacOptions(StageOptions):
                                 "from vertical is Z class (walls) and removed (degrees)")
     dh_max: float = Field(1.0, gt=0, description="a near-horizontal plane whose inliers lie higher than this "
                           "above the ground reference is XY class and removed (m)")
-    ground_cell: float = Field(10.0, gt=0, description="cell edge of the ground reference grid (m); the "
+    ground_cell: float = Field(10.0, ge=MIN_CELL, description="cell edge of the ground reference grid (m); the "
                                "reference is the minimum over the 3 x 3 cells around a point's cell")
     ground_slope: float = Field(0.0, ge=0, le=1, description="terrain grade (rise / run) the ground reference "
                                 "follows: a neighbouring cell's minimum counts raised by this grade times the "
@@ -66,7 +66,7 @@ class RansacOptions(StageOptions):
         "plane's inliers are split into connected parts (plan cells of part_cell) and each part is "
         "classed by its own median height above the ground reference (the slab of a horizontal roof "
         "plane also crosses a sloped street where the street climbs to the roof's height)")
-    part_cell: float = Field(1.0, gt=0, description="m: inliers in touching plan cells of this edge are one "
+    part_cell: float = Field(1.0, ge=MIN_CELL, description="m: inliers in touching plan cells of this edge are one "
                              "part of their plane (xy_removal: part)")
     at_grade_share: float | None = Field(None, gt=0, le=1, description="with xy_removal part: a part high "
                                          "above the ground reference stays when at least this share of its outline "

@@ -44,7 +44,7 @@ from roadx_ti.cloud import Cloud
 from roadx_ti.estimates import MAD_TO_SIGMA
 from roadx_ti.kernels.regions import MAX_ROW
 from roadx_ti.road_graph import Weights, kerbless_road, label_road
-from roadx_ti.stages.base import CLASS_OTHER, CLASS_ROAD, MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
+from roadx_ti.stages.base import MIN_CELL, CLASS_OTHER, CLASS_ROAD, MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
 
 # m: a common kerb height (kerbs are commonly 8-16 cm): measured height noise that blurs steps of
 # this height gets a warning
@@ -66,7 +66,7 @@ class RoadRegionsOptions(StageOptions):
                                 "the region graph's edges (None: all k)")
     edge_factor: float = Field(2.0, gt=0, description="longest graph edge, as a multiple of the median "
                                "distance to the k-th neighbour (the measured point spacing)")
-    slope_cell: float = Field(2.5, gt=0, description="cell edge of the coarse planes whose slope is "
+    slope_cell: float = Field(2.5, ge=MIN_CELL, description="cell edge of the coarse planes whose slope is "
                               "taken out before heights are compared (m)")
     filter_width: float = Field(2.5, gt=0, description="edge-preserving height filter window, as a "
                                 "multiple of the measured height noise")

@@ -103,7 +103,7 @@ from roadx_ti.cloud import Cloud
 from roadx_ti.estimates import MAD_TO_SIGMA
 from roadx_ti.segments import segment_covariance, segment_medians
 from roadx_ti.sorted_keys import find
-from roadx_ti.stages.base import (CLASS_BUILDING, CLASS_OTHER, DATA_EDGE, PositiveOrAuto, Stage, StageContext,
+from roadx_ti.stages.base import (MIN_CELL, CLASS_BUILDING, CLASS_OTHER, DATA_EDGE, PositiveOrAuto, Stage, StageContext,
                                   StageOptions, StageResult, estimate, spacing_cell, survey_spacing)
 
 # footprint_cell 'auto': FOOTPRINT_SPACINGS survey spacings, at least FOOTPRINT_MIN_CELL (m), and
@@ -138,7 +138,7 @@ class RoofFilterOptions(StageOptions):
     min_roof_height: float = Field(2.0, description="smallest median height above ground of a "
                                    "roof segment (m)")
     density: float | None = Field(None, gt=0, description="point density (points/m2); null = measured")
-    density_cell: float = Field(1.0, gt=0, description="cell size for measuring density (m)")
+    density_cell: float = Field(1.0, ge=MIN_CELL, description="cell size for measuring density (m)")
     local_density: bool = Field(True, description="per segment density from its points' neighbour "
                                 "distances (flight-strip overlap doubles ALS density locally)")
     min_roof_width: float = Field(3.0, ge=0, description="smallest plan-view width of a roof "
@@ -239,7 +239,7 @@ class RoofFilterOptions(StageOptions):
                                       "its outline stays within about one cell of the true one (a 1 m "
                                       "cell with a 1 m wall reach on the six IGN tiles: hedges and bushes "
                                       "by the walls joined, mean kappa 0.876 against 0.897)")
-    footprint_min_cell: float = Field(FOOTPRINT_MIN_CELL, gt=0, description="smallest 'auto' footprint cell (m): about "
+    footprint_min_cell: float = Field(FOOTPRINT_MIN_CELL, ge=MIN_CELL, description="smallest 'auto' footprint cell (m): about "
                                       "the eaves' overhang, the distance of a wall inside its roof's outline")
     inside_reach: float = Field(3.0, ge=0, le=MAX_REACH, description="a point is inside a footprint when roof "
                                 "cells lie this close (m) in all four axis directions; covers "
@@ -342,11 +342,20 @@ def cut_lengths(segment: np.ndarray, xy: np.ndarray, count: int, at_edge: np.nda
     return np.where(np.bincount(on[on >= 0], minlength=count) >= 3, length, 0.0)
 
 
-def _cells_around(keys: np.ndarray, span: int, rows: int) -> np.ndarray:
-    """The sorted unique cell keys (column * rows + row) within ``span`` cells (square window) of
-    any of ``keys``."""
+# most cell keys a window lists (int64: 32 MB); beyond, every point counts as in it (the window only
+# preselects points for exact distances: a footprint_cell far under the reach made it hold billions)
+WINDOW_CELLS = 4_000_000
+
+
+def _in_window(keys: np.ndarray, around: np.ndarray, span: int, rows: int) -> np.ndarray:
+    """bool per key of ``keys`` (cell keys column * rows + row): within ``span`` cells (square
+    window) of one of the cells ``around``; all True where that window would list more than
+    WINDOW_CELLS cells."""
+    cells = np.unique(around)
+    if (2 * span + 1) ** 2 * len(cells) > WINDOW_CELLS:
+        return np.ones(len(keys), bool)
     window = np.array([dx * rows + dy for dx in range(-span, span + 1) for dy in range(-span, span + 1)], np.int64)
-    return np.unique((np.unique(keys)[:, None] + window[None, :]).ravel())
+    return np.isin(keys, np.unique((cells[:, None] + window[None, :]).ravel()))
 
 
 def over_roofs(xyz: np.ndarray, core: np.ndarray, grown: np.ndarray, cell: float, height: float,
@@ -371,8 +380,7 @@ def over_roofs(xyz: np.ndarray, core: np.ndarray, grown: np.ndarray, cell: float
     high = new[in_roof_cell & (pts[new, 2] > top[at] + height)]
     if len(high):
         # the roof points within reach in plan of a high point lie in its window of cells
-        around = _cells_around(keys[high], int(np.ceil(round(reach / cell, 9))), int(ij[:, 1].max()) + 1)
-        near = roof[np.isin(keys[roof], around)]
+        near = roof[_in_window(keys[roof], keys[high], int(np.ceil(round(reach / cell, 9))), int(ij[:, 1].max()) + 1)]
         distance, _ = cKDTree(pts[near]).query(pts[high], distance_upper_bound=reach)
         out[high[~np.isfinite(distance)]] = True
     return out
@@ -532,9 +540,9 @@ def annex_segments(segment: np.ndarray, xy: np.ndarray, kept: np.ndarray, candid
     is_roof, is_candidate = kept[seg], candidate[seg]
     # the roof points in a candidate's window of cells, and the candidates' points with one of
     # those in theirs: both through windows around the fewer cells (the candidates' are few)
-    roof = np.flatnonzero(is_roof & np.isin(keys, _cells_around(keys[is_candidate], reach_cells, n_rows)))
+    roof = np.flatnonzero(is_roof & _in_window(keys, keys[is_candidate], reach_cells, n_rows))
     probe = np.flatnonzero(is_candidate)
-    probe = probe[np.isin(keys[probe], _cells_around(keys[roof], reach_cells, n_rows))]
+    probe = probe[_in_window(keys[probe], keys[roof], reach_cells, n_rows)]
     if not len(probe) or not len(roof):
         return np.zeros(count, bool)
     distance, _ = cKDTree(xy[inside[roof]].astype(np.float64)).query(

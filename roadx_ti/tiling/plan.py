@@ -286,6 +286,9 @@ def plan_tiles(files: list[CatalogFile], tile_size: float, buffer: float, scan=N
         y0 = ay + math.floor((ymin - ay) / tile_size) * tile_size
         cols = int(math.floor((xmax - x0) / tile_size)) + 1
         rows = int(math.floor((ymax - y0) / tile_size)) + 1
+        if cols * rows >= 2**62:
+            # cell keys (row * cols + col) beyond int64: a tile size of 1e-300
+            raise TooManyTiles(cols * rows, tile_size)
         grid = CoreGrid(float(x0), float(y0), tile_size, tile_size, cols, rows)
     if buffer < 0:
         raise ValueError(f"tiling buffer must be >= 0 m, got {buffer}")

@@ -153,7 +153,8 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
             plan = plan_tiles(files, tile_size, buffer, scan=scan_cells,
                               max_tiles=max(64, total_points // MIN_POINTS_PER_TILE))
         except TooManyTiles as exc:
-            raise ValueError(f"--tile-size {tile_size:g} gives {exc.tiles:,} tiles for {total_points:,} points, "
+            tiles = f"{exc.tiles:,}" if exc.tiles < 10**9 else f"about 10^{len(str(int(exc.tiles))) - 1}"
+            raise ValueError(f"--tile-size {tile_size:g} gives {tiles} tiles for {total_points:,} points, "
                              f"fewer than {MIN_POINTS_PER_TILE} per tile (each tile reads its files): use a larger "
                              f"tile size, e.g. {default_tile_size(files):g} m") from None
 
