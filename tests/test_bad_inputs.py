@@ -962,6 +962,30 @@ def case_a_pattern_matching_sidecars(d):
     return _tiny(d, folder / "*", code=0, warning="skipped 3 other file(s)", check=check)
 
 
+def case_merged_catalog_led_by_an_empty_file(d):
+    """A catalog whose first file is empty with a default header (scales 0.001, offsets 0) merged
+    into one LAZ: the output takes the first file with points' header, every record bit-exact
+    (the empty file's grid had put y = 4.5e6 m beyond int32: every point at y -2147483.648, exit 0)."""
+    folder = d / "in" / "tiles"
+    folder.mkdir(parents=True)
+    xyz = bumpy_ground(4000)
+    write_las(folder / "a_empty.laz", np.zeros((0, 3)), scale=0.001, offset=np.zeros(3))
+    src = write_las(folder / "b.laz", xyz)
+    return _tiny(d, folder, code=0, check=lambda c: _las_result(c, src))
+
+
+def case_merged_catalog_beyond_int32(d):
+    """A merged catalog whose second file lies 300 km from the first, whose 0.1 mm scale reaches
+    only 214 km from its offset: exit 1 before any tile runs, naming the file and per-file mode
+    (its points were clipped onto one x, exit 0)."""
+    folder = d / "in" / "tiles"
+    folder.mkdir(parents=True)
+    xyz = bumpy_ground(4000)
+    write_las(folder / "a.laz", xyz, scale=0.0001)
+    write_las(folder / "c.laz", xyz + [300_000.0, 0.0, 0.0])
+    return _tiny(d, folder, message="c.laz: its x coordinates (800000.")
+
+
 def case_catalog_of_two_point_formats_merged(d):
     """A catalog of a point format 3 and a point format 6 file into one merged LAZ: exit 1 before
     any tile runs (it failed at the merge, after every tile), naming both formats and per-file."""

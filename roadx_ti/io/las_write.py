@@ -301,12 +301,38 @@ def check_written(path, tmp, source="") -> None:
 
 # ------------------------------------------------------------------------------- header look-ups
 
+def template_source(sources):
+    """The source whose header a merged LAS/LAZ output takes: the first that holds points (an empty
+    tile's default header, scales 0.001 and offsets 0, put every other file's coordinates beyond
+    int32), else the first."""
+    for source in sources:
+        with laspy.open(source) as reader:
+            if reader.header.point_count:
+                return source
+    return sources[0]
+
+
+def _check_fits(source, template, las, header) -> None:
+    """InputError when the chunk's coordinates fall beyond the int32 records of the output's scales
+    and offsets (laspy's rescaling clips them: every point of a file 300 km off sat on one x)."""
+    if not len(las.points):
+        return
+    for axis, name in enumerate("xyz"):
+        values = np.asarray(las[name], np.float64)
+        steps = (np.array([values.min(), values.max()]) - header.offsets[axis]) / header.scales[axis]
+        if steps.min() < -2**31 or steps.max() > 2**31 - 1:
+            raise InputError(f"{source}: its {name} coordinates ({values.min():.3f} .. {values.max():.3f}) lie beyond "
+                             f"what a LAS file with {Path(template).name}'s scale {header.scales[axis]:g} and offset "
+                             f"{header.offsets[axis]:g} can hold (32-bit integers); use output.mode per-file, or "
+                             "give the files one offset near their points (e.g. pdal translate)")
+
+
 def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_POINTS, on_file=None,
                      mismatch_hint: str = "") -> int:
     """Stream the point records of the LAS/LAZ files ``sources`` (in order, ``chunk_points`` at a
     time) into one LAS/LAZ ``path`` (LAZ when it ends with .laz), written atomically: every record
     bit for bit as read but its classification and the extra dimensions ``labels`` gives; the
-    header is the first source's with those dimensions. Returns the number of points written.
+    header is the first source's with points (template_source) with those dimensions. Returns the number of points written.
 
     ``labels(i, chunk)`` -> (classification, extra_dims, subset) of a chunk (laspy point record) of
     ``sources[i]``, called in file order; subset None keeps every point of the chunk. ``empty`` is
@@ -314,25 +340,27 @@ def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_
     called when ``sources[i]`` has been read, with its number of points. A source whose point format
     cannot join the first's raises InputError (ending with ``mismatch_hint``)."""
     written = 0
+    template = template_source(sources)
     with atomic_output(path) as tmp:
         writer = None
         try:
+            with laspy.open(template) as reader:    # the template's header, with the result dimensions
+                header = copy.deepcopy(reader.header)
+            none = laspy.ScaleAwarePointRecord.zeros(0, header=header)
+            first = _las_from_record(path, laspy.LasData(header, none), 0, *empty)
+            writer = laspy.open(tmp, mode="w", header=first.header, do_compress=Path(path).suffix.lower() == ".laz")
             for i, source in enumerate(sources):
                 seen = 0
                 with laspy.open(source) as reader:
                     header = copy.deepcopy(reader.header)
-                    if writer is None:    # the first file's header, with the result dimensions
-                        none = laspy.ScaleAwarePointRecord.zeros(0, header=header)
-                        first = _las_from_record(path, laspy.LasData(header, none), 0, *empty)
-                        writer = laspy.open(tmp, mode="w", header=first.header,
-                                            do_compress=Path(path).suffix.lower() == ".laz")
                     for chunk in reader.chunk_iterator(chunk_points):
                         seen += len(chunk)
                         las = _las_from_record(path, laspy.LasData(header, chunk), len(chunk), *labels(i, chunk))
+                        _check_fits(source, template, las, writer.header)
                         try:
                             writer.write_points(las.points)
                         except laspy.errors.LaspyException as exc:
-                            raise InputError(f"{source}: cannot be merged with {sources[0]} ({exc}: point "
+                            raise InputError(f"{source}: cannot be merged with {template} ({exc}: point "
                                              f"formats differ){mismatch_hint}") from None
                         written += len(las.points)
                 if on_file is not None:

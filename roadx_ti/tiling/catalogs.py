@@ -169,9 +169,10 @@ def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> No
             log.warning("%d input file(s) name no coordinate system (e.g. %s); taken to be in %s like %s",
                         len(unnamed), unnamed[0], _crs_name(first), first_path)
     if merged_las:
-        first_path = las[0].path
+        # the merged file takes the header of the first file with points (io.las_write.template_source)
+        first_path = next((f.path for f in las if f.count), las[0].path)
         # one merged file holds one point format: say it before the tiles run, not at the merge
-        for f in las[1:]:
+        for f in las:
             # laspy's own test when it writes (ids, and extra dimensions with their descriptions)
             if formats[f.path] != formats[first_path]:
                 a, b = formats[first_path].id, formats[f.path].id
@@ -179,7 +180,18 @@ def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> No
                 raise io.InputError(f"{f.path}: cannot be merged with {first_path} ({what}: a merged LAS/LAZ "
                                     "output holds one point format); use output.mode per-file, or convert them "
                                     "to one format first (e.g. pdal translate --writers.las.dataformat_id)")
-        differ = [f.path for f in las if not _on_grid(grids[f.path], grids[first_path])]
+        scales, offsets = grids[first_path]
+        for f in las:
+            lows, highs = (f.bounds[0], f.bounds[1], f.z_range[0]), (f.bounds[2], f.bounds[3], f.z_range[1])
+            for axis, (low, high) in enumerate(zip(lows, highs)):
+                steps = ((low - offsets[axis]) / scales[axis], (high - offsets[axis]) / scales[axis])
+                if f.count and (min(steps) < -2**31 or max(steps) > 2**31 - 1):
+                    raise io.InputError(
+                        f"{f.path}: its {'xyz'[axis]} coordinates ({low:.3f} .. {high:.3f}) lie beyond what the "
+                        f"merged output, with {Path(first_path).name}'s scale {scales[axis]:g} and offset "
+                        f"{offsets[axis]:g}, can hold (32-bit integers); use output.mode per-file, or give the "
+                        "files one offset near their points (e.g. pdal translate)")
+        differ = [f.path for f in las if f.count and not _on_grid(grids[f.path], grids[first_path])]
         if differ:
             scales, offsets = grids[first_path]
             log.warning("%d input file(s) have other scales or offsets than %s (e.g. %s: scales %s, offsets %s); "
