@@ -6,6 +6,7 @@ never a traceback.
 from __future__ import annotations
 
 import argparse
+import errno
 import logging
 import math
 import os
@@ -181,6 +182,12 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:   # a case nobody foresaw: one line (ROADX_TI_TRACEBACK=1 shows where)
         if _RECEIVED:          # a signal raised inside a library callback, which wrapped it
             return _stopped_by(_RECEIVED[0])
+        if isinstance(exc, OSError) and exc.errno in PATH_ERRNOS:
+            # a path the system cannot take (a name over 255 bytes, a path over 4 KB, a loop of
+            # links), from wherever it was first looked at: the user's mistake
+            name = shown_path(exc.filename)
+            print(f"roadx_ti: {name}: {(exc.strerror or 'bad path').lower()}; use a shorter path", file=sys.stderr)
+            return EXIT_USAGE
         if os.environ.get("ROADX_TI_TRACEBACK"):
             raise
         text = " ".join(str(exc).split())[:300] or "(no message)"
@@ -192,6 +199,13 @@ def main(argv: list[str] | None = None) -> int:
 
 
 _RECEIVED: list = []     # termination signals received during this main()
+PATH_ERRNOS = {errno.ENAMETOOLONG, errno.ELOOP}
+
+
+def shown_path(path, most: int = 80) -> str:
+    """A path for a message: its first and last characters when it is long."""
+    text = os.fsdecode(path) if path is not None else "a path"
+    return text if len(text) <= most else f"{text[:most // 2 - 2]}...{text[-(most // 2 - 2):]}"
 
 
 def _stopped_by(number: int) -> int:
@@ -261,6 +275,33 @@ def _output_paths(out: Path) -> dict:
     stem = output_stem(out)
     return {"summary": Path(f"{stem}.summary.json"), "config": Path(f"{stem}.config.yaml"),
             "png": Path(f"{stem}.png")}
+
+
+def _sidecars_written(cfg, out: Path) -> dict:
+    """The files besides the point cloud that the run writes (kind: path)."""
+    if cfg.tiled and cfg.output.mode == "per-file":
+        return {"summary": out / "summary.json", "config": out / "config.yaml"}
+    written = _output_paths(out)
+    if cfg.dtm_path() is not None:
+        written["DTM"] = cfg.dtm_path()
+    return written
+
+
+def _refuse_writing_over(cfg, out: Path, config_path) -> None:
+    """A sidecar of the run must not be the config file it runs or one of its inputs (a config named
+    k.config.yaml beside --output k.laz was replaced by the resolved copy, its comments lost)."""
+    protected = [("the config file it runs", Path(config_path))] + [("its input", Path(p)) for p in cfg.input.paths]
+    for kind, path in _sidecars_written(cfg, out).items():
+        for what, other in protected:
+            same = Path(os.path.abspath(path)) == Path(os.path.abspath(other))
+            if not same and path.exists() and other.exists():
+                try:
+                    same = os.path.samefile(path, other)
+                except OSError:
+                    pass
+            if same:
+                raise UsageError(f"{path}: the run writes its {kind} file there, over {what}; choose another "
+                                 "output name (or move the file)")
 
 
 def _check_distinct_outputs(out: Path, dtm: Path) -> None:
@@ -342,6 +383,7 @@ def _cmd_run(args) -> int:
     out = Path(cfg.output.path)
     if cfg.dtm_path() is not None:
         _check_distinct_outputs(out, cfg.dtm_path())
+    _refuse_writing_over(cfg, out, args.config)
     from roadx_ti import memory
     if cfg.memory_limit:
         os.environ[memory.LIMIT_VARIABLE] = cfg.memory_limit     # also seen by local Dask workers

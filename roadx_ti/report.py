@@ -247,7 +247,8 @@ def top_view_png(path, cloud, predicted: np.ndarray, *, truth: np.ndarray | None
     for ax, (name, image, legend) in zip(axes.flat, panels):
         _panel(ax, image, view, name, legend)
     if title:
-        fig.suptitle(title, fontsize=14, fontweight="bold")
+        # a file name that is not UTF-8 arrives with surrogate escapes, which the renderer refuses
+        fig.suptitle(title.encode("utf-8", "surrogateescape").decode("utf-8", "replace"), fontsize=14, fontweight="bold")
     _save_png(fig, path)
     return facts
 

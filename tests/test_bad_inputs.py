@@ -962,6 +962,39 @@ def case_a_pattern_matching_sidecars(d):
     return _tiny(d, folder / "*", code=0, warning="skipped 3 other file(s)", check=check)
 
 
+def case_output_name_over_255_bytes(d):
+    """An output file name of 300 bytes: exit 2, the name shortened in the message (an 'unexpected
+    error' from the first look at it)."""
+    return _tiny(d, _ground_laz(d), output=d / "out" / ("n" * 300 + ".laz"), code=2,
+                 message="file name too long; use a shorter path")
+
+
+def case_config_copy_over_the_config(d):
+    """run out/k.config.yaml --output out/k.laz: the run's config copy would replace the config it
+    runs (its comments lost): exit 2 before any work, the config unchanged."""
+    (d / "out").mkdir()
+    config = d / "out" / "k.config.yaml"
+    config.write_text(write_tiny_config(d).read_text() + "# a comment the copy would lose\n")
+    before = config.read_bytes()
+
+    def check(c):
+        assert config.read_bytes() == before
+    return _run(config, d, _ground_laz(d), output=d / "out" / "k.laz", code=2,
+                message="the run writes its config file there, over the config file it runs", check=check)
+
+
+def case_input_name_not_utf8(d):
+    """An input whose file name is not UTF-8 (bytes 0xff 0xfe) with the picture on: it runs and
+    writes the picture (its title failed in the renderer after the whole pipeline had run)."""
+    src = _ground_laz(d)
+    odd = src.with_name("bad\udcff\udcfe.laz")
+    src.rename(odd)
+
+    def check(c):
+        assert c.output.with_suffix(".png").stat().st_size > 0
+    return _tiny(d, odd, code=0, extra=["--set", "output.report_png=true"], check=check)
+
+
 def case_merged_catalog_led_by_an_empty_file(d):
     """A catalog whose first file is empty with a default header (scales 0.001, offsets 0) merged
     into one LAZ: the output takes the first file with points' header, every record bit-exact
