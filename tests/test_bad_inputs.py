@@ -995,6 +995,21 @@ def case_input_name_not_utf8(d):
     return _tiny(d, odd, code=0, extra=["--set", "output.report_png=true"], check=check)
 
 
+def case_laz_of_wave_packets_from_two_channels(d):
+    """Point format 9 with wave packets from two scanner channels into LAZ: exit 1 before the
+    stages, .las named (lazrs wrote the packets' offsets and x_t of 99.9 % of the points wrong, exit 0)."""
+    src = write_las(d / "in" / "waves.las", bumpy_ground(3000), point_format=9)
+    las = laspy.read(src)
+    n = len(las.points)
+    las.wavepacket_index = np.ones(n, np.uint8)
+    las.wavepacket_offset = np.arange(n, dtype=np.uint64) * 256
+    las.wavepacket_size = np.full(n, 256, np.uint32)
+    las.x_t = np.linspace(-1.0, 1.0, n).astype(np.float32)
+    las.scanner_channel = (np.arange(n) % 2).astype(np.uint8)
+    las.write(src)
+    return _tiny(d, src, message="LAZ cannot keep these points' wave packet fields", max_seconds=30)
+
+
 def case_merged_catalog_led_by_an_empty_file(d):
     """A catalog whose first file is empty with a default header (scales 0.001, offsets 0) merged
     into one LAZ: the output takes the first file with points' header, every record bit-exact

@@ -213,6 +213,37 @@ def las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> la
     return laspy.LasData(header, record)
 
 
+WAVE_PACKET_FIELDS = ("wavepacket_offset", "wavepacket_size", "return_point_wave_location", "x_t", "y_t", "z_t")
+
+
+def check_laz_wave_packets(path, las: laspy.LasData, state: dict) -> None:
+    """InputError when a LAZ ``path`` would get point format 9 / 10 records with wave packet fields
+    from more than one scanner channel: lazrs 0.8 decodes them wrong (a write and read of such a
+    file alone changes 99.9 % of their offsets and x_t / y_t / z_t). ``state`` carries the channels
+    and whether packets were seen over the chunks of one output."""
+    if not str(path).lower().endswith(".laz") or las.header.point_format.id not in (9, 10) or not len(las.points):
+        return
+    state.setdefault("channels", set()).update(np.unique(np.asarray(las.scanner_channel)).tolist())
+    state["packets"] = state.get("packets", False) or any(np.any(np.asarray(las[f])) for f in WAVE_PACKET_FIELDS)
+    if state["packets"] and len(state["channels"]) > 1:
+        raise InputError(f"{path}: LAZ cannot keep these points' wave packet fields (point format "
+                         f"{las.header.point_format.id}, {len(state['channels'])} scanner channels: lazrs compresses "
+                         "them wrongly); write .las instead")
+
+
+def check_laz_wave_packets_of(path, source) -> None:
+    """check_laz_wave_packets over the records of the LAS/LAZ file ``source`` (decoded only when it
+    holds point format 9 or 10 and ``path`` is LAZ): before a run, not after its pipeline."""
+    if not str(path).lower().endswith(".laz") or not str(source).lower().endswith((".las", ".laz")):
+        return
+    with laspy.open(source) as reader:
+        if reader.header.point_format.id not in (9, 10):
+            return
+        state = {}
+        for chunk in reader.chunk_iterator(CHUNK_POINTS):
+            check_laz_wave_packets(path, laspy.LasData(reader.header, chunk), state)
+
+
 def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=None) -> None:
     """Write ``cloud`` to LAS, LAZ when ``path`` ends with .laz, COPC when it ends with
     .copc.laz (io/copc.py), atomically."""
@@ -232,6 +263,7 @@ def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subse
     if copc.is_copc_path(path):
         copc.write(path, las)
         return
+    check_laz_wave_packets(path, las, {})
     compress = str(path).lower().endswith(".laz")
     with atomic_output(path) as tmp:
         with open(tmp, "wb") as f:
@@ -340,6 +372,7 @@ def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_
     called when ``sources[i]`` has been read, with its number of points. A source whose point format
     cannot join the first's raises InputError (ending with ``mismatch_hint``)."""
     written = 0
+    packets = {}
     template = template_source(sources)
     with atomic_output(path) as tmp:
         writer = None
@@ -357,6 +390,7 @@ def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_
                         seen += len(chunk)
                         las = _las_from_record(path, laspy.LasData(header, chunk), len(chunk), *labels(i, chunk))
                         _check_fits(source, template, las, writer.header)
+                        check_laz_wave_packets(path, las, packets)
                         try:
                             writer.write_points(las.points)
                         except laspy.errors.LaspyException as exc:
