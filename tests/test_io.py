@@ -221,6 +221,26 @@ def test_classes_above_31_upgrade_legacy_format(tmp_path):
     assert laspy.read(tmp_path / "same.las").header.point_format.id == 3
 
 
+@pytest.mark.parametrize("streamed", [False, True])
+def test_extra_dims_keep_their_no_data_value(tmp_path, streamed):
+    """An input extra dimension whose Extra Bytes record declares a no-data value (-9999) keeps it
+    in the output when the result dimensions are added (laspy rebuilt the record without it: the
+    sentinel became a plain value), whether the records are held or streamed from the input."""
+    src = tmp_path / "nd.las"
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.add_extra_dims([laspy.ExtraBytesParams("reflectance", "f4", no_data=[-9999.0], description="dB")])
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = np.random.default_rng(2).uniform(0, 20, (50, 3)).T
+    las.reflectance = np.where(np.arange(50) % 5 == 0, -9999.0, -3.0).astype(np.float32)
+    las.write(src)
+    cloud = io.read(src, keep_records=not streamed)
+    io.write(tmp_path / "out.laz", cloud, extra_dims={"roadx_label": np.ones(50, np.uint8)})
+    structs = laspy.open(tmp_path / "out.laz").header.vlrs.get("ExtraBytesVlr")[0].extra_bytes_structs
+    declared = {s.format_name(): s.no_data for s in structs}
+    assert declared["reflectance"].tolist() == [-9999.0] and declared["roadx_label"] is None
+    assert np.array_equal(np.asarray(laspy.read(tmp_path / "out.laz").reflectance), np.asarray(las.reflectance))
+
+
 def test_extra_dims_replace_existing_ones(tmp_path):
     world = np.random.default_rng(1).uniform(0, 20, (100, 3))
     src = tmp_path / "eb.laz"

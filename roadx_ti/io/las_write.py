@@ -84,10 +84,18 @@ def _set_extra_dims(path, header, array: np.ndarray, extra: dict) -> laspy.Scale
             replace.append(name)
         if old is None or name in replace:
             add.append(laspy.ExtraBytesParams(name=name, type=values.dtype))
+    declared = _declared_no_data(header)
     if replace:
         header.remove_extra_dims(replace)
     if add:
         header.add_extra_dims(add)
+    if declared and add:
+        # laspy (2.7) reads an extra dimension's no-data value but forgets it when it rebuilds the
+        # Extra Bytes record for the added dimensions: a sentinel (-9999) became a plain value
+        fmt = header.point_format
+        fmt.dimensions[:] = [d._replace(no_data=declared[d.name]) if not d.is_standard and d.name in declared
+                             and d.name not in replace else d for d in fmt.dimensions]
+        header._sync_extra_bytes_vlr()
     record = laspy.ScaleAwarePointRecord.zeros(len(array), header=header)
     fields, new_fields = array.dtype.fields, record.array.dtype.fields
     if not replace and array.flags.c_contiguous and all(new_fields[f][1] == fields[f][1] for f in fields):
@@ -102,6 +110,14 @@ def _set_extra_dims(path, header, array: np.ndarray, extra: dict) -> laspy.Scale
     for name, values in extra.items():
         record.array[name] = values
     return record
+
+
+def _declared_no_data(header) -> dict:
+    """name: no-data value of each extra dimension whose Extra Bytes record declares one."""
+    found = header.vlrs.get("ExtraBytesVlr")
+    if not found:
+        return {}
+    return {s.format_name(): s.no_data for s in found[0].extra_bytes_structs if s.no_data is not None}
 
 
 def _plain_header(header) -> laspy.LasHeader:
