@@ -828,12 +828,12 @@ def case_offset_at_the_float64_limit(d):
     """An x offset of 1.7976931348623157e308 (every x collapses onto it; it ran and wrote
     meaningless labels): exit 1, the header named as wrong."""
     return _tiny(d, _header_field(d, "offset.las", 155, "<d", 1.7976931348623157e308),
-                 message="x coordinates reach 1.8e+308 m, beyond what float64 holds")
+                 message="invalid header: scales [0.01, 0.01, 0.01] offsets [1.79769e+308, 4.5e+06, 99]")
 
 
 def case_scale_at_the_float64_limit(d):
-    """An x scale of 1e308: x overflows to inf; exit 1 naming the origin that is not finite."""
-    return _tiny(d, _header_field(d, "scale.las", 131, "<d", 1e308), message="is not finite")
+    """An x scale of 1e308 (x overflowed to inf): exit 1, the header's scales named."""
+    return _tiny(d, _header_field(d, "scale.las", 131, "<d", 1e308), message="invalid header: scales [1e+308, 0.01")
 
 
 def case_vlr_count_beyond_the_header(d):
@@ -1008,6 +1008,13 @@ def case_laz_of_wave_packets_from_two_channels(d):
     las.scanner_channel = (np.arange(n) % 2).astype(np.uint8)
     las.write(src)
     return _tiny(d, src, message="LAZ cannot keep these points' wave packet fields", max_seconds=30)
+
+
+def case_header_scale_of_a_million(d):
+    """A header whose scales say 1e6 m per step: exit 1, the header named wrong (an 'unexpected
+    error' from the isolation test over points 1e15 m apart; at 1e3 the run took minutes)."""
+    src = write_las(d / "in" / "scaled.las", bumpy_ground(3000), scale=1e6)
+    return _tiny(d, src, message="invalid header: scales [1e+06, 1e+06, 1e+06]")
 
 
 def case_merged_catalog_led_by_an_empty_file(d):

@@ -182,11 +182,28 @@ def _too_many(path, n: int) -> InputError:
                       "(read it in windows with read(path, bounds=...), or pdal tile / lastile)")
 
 
+# m: the largest coordinate step (scale) and coordinate magnitude a survey's header can mean (a
+# scale of 1e6 put points 1e15 m off; no CRS on Earth, projected or geocentric, nears 1e9 m)
+MAX_SCALE = 10.0
+MAX_COORDINATE = 1e9
+
+
+def _numbers(values) -> str:
+    return "[" + ", ".join(f"{float(v):g}" for v in values) + "]"
+
+
 def _check_header(path, header) -> None:
-    if not (np.all(np.isfinite(header.scales)) and np.all(np.isfinite(header.offsets))
-            and np.all(np.asarray(header.scales) != 0)):
-        raise fail(path, f"invalid header: scales {list(header.scales)} offsets "
-                         f"{list(header.offsets)}, so all {header.point_count} coordinates are NaN/inf")
+    scales, offsets = np.asarray(header.scales, np.float64), np.asarray(header.offsets, np.float64)
+    if not (np.all(np.isfinite(scales)) and np.all(np.isfinite(offsets))):
+        raise fail(path, f"invalid header: scales {_numbers(scales)} offsets {_numbers(offsets)} are not finite "
+                         "numbers; fix the header (e.g. pdal translate with writers.las.scale_x / offset_x)")
+    if np.any(scales == 0):
+        raise fail(path, f"invalid header: scales {_numbers(scales)}: a scale of 0 puts every point on the "
+                         "offset; fix the header (e.g. pdal translate with writers.las.scale_x)")
+    if np.any(np.abs(scales) > MAX_SCALE) or np.any(np.abs(offsets) > MAX_COORDINATE):
+        raise fail(path, f"invalid header: scales {_numbers(scales)} offsets {_numbers(offsets)}: steps over "
+                         f"{MAX_SCALE:g} m or offsets over {MAX_COORDINATE:g} m are no survey's; the header's scales "
+                         "or offsets are wrong")
 
 
 def _check_magnitude(path, world: np.ndarray, scales) -> None:
@@ -195,12 +212,13 @@ def _check_magnitude(path, world: np.ndarray, scales) -> None:
     if not len(world):
         return
     reach = column_abs_nanmax(world)
-    limit = np.maximum(np.abs(np.asarray(scales, np.float64)), 1e-3) * 2.0**52
+    limit = np.minimum(np.maximum(np.abs(np.asarray(scales, np.float64)), 1e-3) * 2.0**52, MAX_COORDINATE)
     bad = np.flatnonzero(np.isfinite(reach) & (reach > limit))
     if len(bad):
         a = int(bad[0])
         raise fail(path, f"{'xyz'[a]} coordinates reach {reach[a]:.3g} m, beyond what float64 holds at the "
-                         f"file's {float(scales[a]):g} m scale; the header's scales or offsets are wrong")
+                         f"file's {float(scales[a]):g} m scale or any survey's {MAX_COORDINATE:g} m; the header's "
+                         "scales or offsets are wrong")
 
 
 def _world_xyz(points) -> np.ndarray:
@@ -507,6 +525,13 @@ def info_las(path) -> dict:
         check_structure(path)
         with laspy.open(path) as reader:
             h = reader.header
+            problems = []
+            try:
+                _check_header(path, h)
+            except InputError as exc:
+                # described all the same (info is where one looks at a broken header), but said
+                problems.append(str(exc))
+                logging.getLogger("roadx_ti").warning("%s (a run refuses this file)", exc)
             fmt = h.point_format
             dims = set(fmt.dimension_names)
             has_rgb = "red" in dims
@@ -558,4 +583,5 @@ def info_las(path) -> dict:
         "class_histogram": histogram,
         "scales": [float(s) for s in h.scales],
         "offsets": [float(o) for o in h.offsets],
+        "problems": problems,
     }
