@@ -180,6 +180,14 @@ class RunConfig(_Strict):
             check_order(stage_class(name) for name, _ in out)
         except StageOrderError as exc:
             raise ConfigError(f"config error: {exc}") from None
+        target = PIPELINE_TARGET[self.pipeline]
+        for i, (name, _) in enumerate(out):
+            labels = stage_class(name).labels
+            if labels is not None and labels != target:
+                # pipeline: roof over the road stages wrote class 11 and scored class 6 (none)
+                pipeline = next(p for p, c in PIPELINE_TARGET.items() if c == labels)
+                raise ConfigError(f"config error: pipeline = {self.pipeline!r}, but stages[{i}] {name} labels class "
+                                  f"{labels} ({pipeline}), not {target}; set pipeline: {pipeline}")
         return out
 
     @field_validator("memory_limit", mode="before")

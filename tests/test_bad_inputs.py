@@ -466,6 +466,13 @@ def case_yaml_merge_key(d):
     return _run(config, d, src, code=0, check=check)
 
 
+def case_pipeline_unlike_its_stages(d):
+    """pipeline = roof over the road stages: exit 2 naming the stage and its class (it wrote road
+    class 11, scored class 6: no accuracy, a picture titled 'roof')."""
+    return _option_refused(d, "demo.yaml", "pipeline=roof",
+                           "pipeline = 'roof', but stages[5] road_regions labels class 11 (road), not 6")
+
+
 def case_road_weight_not_a_number(d):
     """road_regions.weights.colour = 'abc': exit 2, the weight named (it was a numpy error)."""
     return _option_refused(d, "demo.yaml", "stages.road_regions.weights.colour=abc",

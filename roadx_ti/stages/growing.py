@@ -102,6 +102,7 @@ def _channels(cloud: Cloud, o: GrowingOptions, ctx: StageContext):
 
 class ColorGrowing(Stage):
     name = "color_growing"
+    labels = CLASS_ROAD
     Options = GrowingOptions
 
     @classmethod

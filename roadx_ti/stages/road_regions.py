@@ -301,6 +301,7 @@ def plan_density(xy: np.ndarray, cell: float = 0.5) -> float:
 
 class RoadRegions(Stage):
     name = "road_regions"
+    labels = CLASS_ROAD
     Options = RoadRegionsOptions
 
     @classmethod

@@ -653,6 +653,7 @@ def roof_plane_noise(xyz, knn, segment, normal, curvature, planar_max: float, mi
 
 class RoofFilter(Stage):
     name = "roof_filter"
+    labels = CLASS_BUILDING
     Options = RoofFilterOptions
     # and 'height_above_ground' (cloth_ground) when there: without it the height test is skipped
     requires = ("roof_segment",)
