@@ -183,3 +183,25 @@ def test_copc_output_names_the_records_it_leaves_out(tmp_path, caplog):
     with caplog.at_level(logging.WARNING, logger="roadx_ti"):
         io.write(tmp_path / "out.copc.laz", io.read(path))
     assert "left out: someorg/7" in caplog.text
+
+
+def test_per_file_output_of_a_copc_input_is_named_laz(tmp_path):
+    """A catalog of a COPC file and a LAZ file run per-file: the COPC file's output is s.laz, a
+    plain LAZ, with a warning (it was s.copc.laz holding plain LAZ, which PDAL and QGIS take for
+    COPC)."""
+    from tests.cli_helpers import bumpy_ground
+
+    folder = tmp_path / "tiles"
+    folder.mkdir()
+    xyz = bumpy_ground(4000, side=40.0)
+    west = xyz[:, 0] < np.median(xyz[:, 0])
+    copc.write(folder / "s.copc.laz", laspy.read(write_las(tmp_path / "west.laz", xyz[west])))
+    write_las(folder / "b.laz", xyz[~west])
+    out = tmp_path / "out"
+    proc = run_cli("run", write_tiny_config(tmp_path), "--backend", "cpu", "--input", folder, "--output", out,
+                   "--set", "output.mode=per-file", "--tile-size", "25")
+    assert proc.returncode == 0, proc.stderr
+    assert "its per-file output is s.laz, a plain LAZ" in proc.stderr
+    assert sorted(p.name for p in out.iterdir() if p.suffix == ".laz") == ["b.laz", "s.laz"]
+    assert io.info(out / "s.laz")["format"] == "laz"
+    assert len(laspy.read(out / "s.laz").points) == int(west.sum())

@@ -106,6 +106,18 @@ def _check_memory_limit(cfg, workers) -> None:
                          f"{MIN_WINDOW_POINTS:,} points{per}); give more")
 
 
+def _per_file_name(path, log) -> str:
+    """The per-file output's name: the input's, but a COPC input's is X.laz (its output is a plain
+    LAZ in tile order; named X.copc.laz, PDAL and QGIS would take it for COPC)."""
+    name = Path(path).name
+    if name.lower().endswith(".copc.laz"):
+        plain = name[:-len(".copc.laz")] + ".laz"
+        log.warning("%s: its per-file output is %s, a plain LAZ (tiled runs write no COPC yet; convert it, "
+                    "e.g. pdal translate %s %s)", path, plain, plain, name)
+        return plain
+    return name
+
+
 def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, scheduler: str | None = None,
                 tile_size: float | None = None, buffer: float | None = None, output_mode: str = "merged",
                 progress: bool = True, log=None, summary_path=None, split_dir=None) -> dict:
@@ -169,7 +181,7 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
     else:
         folder = Path(output_path)
         folder.mkdir(parents=True, exist_ok=True)
-        names = [Path(f.path).name for f in files]
+        names = [_per_file_name(f.path, log) for f in files]
         if len(set(names)) != len(names):
             raise io.InputError("per-file output needs distinct input file names; "
                                 f"{len(names) - len(set(names))} repeat")
