@@ -1566,9 +1566,9 @@ def render(task_results: dict, command) -> str:
 
 def _sizes(text: str) -> tuple:
     """Point counts of a size list (300k,1M); argparse.ArgumentTypeError on a bad one."""
-    from roadx_ti.config import parse_point_count
+    from roadx_ti.config import parse_scene_size
 
-    return tuple(parse_point_count(v) for v in text.split(",") if v.strip())
+    return tuple(parse_scene_size(v) for v in text.split(",") if v.strip())
 
 
 def _seeds(text: str):
@@ -1584,9 +1584,9 @@ def _seeds(text: str):
 
 def _large(text: str) -> int | None:
     """--road-large: a point count, or None for '' / 'none' (no larger scene)."""
-    from roadx_ti.config import parse_point_count
+    from roadx_ti.config import parse_scene_size
 
-    return None if text.strip().lower() in ("", "none") else parse_point_count(text)
+    return None if text.strip().lower() in ("", "none") else parse_scene_size(text)
 
 
 def _checked(parse, what: str):

@@ -766,7 +766,12 @@ def cmd_info(args) -> int:
 def cmd_accuracy(args) -> int:
     from roadx_ti import accuracy
 
-    return accuracy.main(args)
+    _MADE_FOLDERS.clear()
+    try:
+        return accuracy.main(args)
+    except BaseException:
+        _remove_made_folders()      # the report's folder, made for a run that failed, when empty
+        raise
 
 
 def cmd_bench(args) -> int:

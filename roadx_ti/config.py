@@ -312,6 +312,19 @@ def parse_point_count(text: str) -> int:
     return value
 
 
+def parse_scene_size(text: str) -> int:
+    """A synthetic scene's point count as users type it (parse_point_count), at least the
+    generator's 1000 (argparse type: a smaller one is a usage error before any scene is built)."""
+    import argparse
+
+    from roadx_ti.synthetic import MIN_POINTS
+
+    value = parse_point_count(text)
+    if value < MIN_POINTS:
+        raise argparse.ArgumentTypeError(f"a synthetic scene holds at least {MIN_POINTS} points, got {text!r}")
+    return value
+
+
 def parse_value(text: str):
     """A --set value: YAML scalar syntax (numbers, true/false, null, [lists])."""
     try:

@@ -166,6 +166,13 @@ def test_command_line_mistakes_are_one_line(tmp_path, args, said):
     (["bench", "--render", "missing.json"], "--render missing.json: not a bench JSON record"),
     (["bench", "--render", "a_file"], "--render a_file: not a bench JSON record"),   # UnicodeDecodeError
     (["accuracy", "--task", "roof", "--out", "a_file"], "a_file: is a file; the accuracy report"),  # FileExistsError
+    (["accuracy", "--task", "road", "--road-sizes", "1", "--out", "acc"],
+     "a synthetic scene holds at least 1000 points, got '1'"),                     # skipped the row, exit 0
+    (["accuracy", "--task", "road", "--backend", "bogus", "--out", "acc"],
+     "backend 'bogus' is not one of"),                                             # left an empty folder acc
+    (["bench", "--quick", "--sizes", "1"], "a synthetic scene holds at least 1000 points"),  # an error row, exit 0
+    (["bench", "--render", "empty.json"], "--render empty.json: not a bench JSON record (no 'meta' and 'rows')"),
+    (["bench", "--render", "list.json"], "not a bench JSON record (a JSON list, not an object)"),  # TypeError
     (["synth", "--kind", "uav-road", "--points", "1000", "--density", "1e-9", "-o", "x.laz"],
      "would be a scene 1,000.0 km across"),                                        # laid out for minutes
     (["run", str(REPO / "configs" / "ground.yaml"), "--input", "x.laz", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"],
@@ -177,6 +184,8 @@ def test_mistakes_in_the_other_commands_are_one_line_before_any_work(tmp_path, a
     report it', silent exits 0 or runs of minutes). Nothing is written."""
     from cli_helpers import error_line
     (tmp_path / "a_file").write_bytes(b"\xea\x00 not json")
+    (tmp_path / "empty.json").write_text("{}")
+    (tmp_path / "list.json").write_text("[]")
     before = sorted(p.name for p in tmp_path.iterdir())
     proc = run_cli(*args, cwd=tmp_path, timeout=120)
     line = error_line(proc, 2)

@@ -15,9 +15,9 @@ from roadx_ti.bench.runner import execute
 
 def _point_count(text: str) -> int:
     # imported here: anchor workers import this module and must not pay for Taichi's import
-    from roadx_ti.config import parse_point_count
+    from roadx_ti.config import parse_scene_size
 
-    return parse_point_count(text)
+    return parse_scene_size(text)
 
 
 
@@ -73,10 +73,15 @@ def main(args) -> int:
         runs = []
         for p in args.render:
             try:
-                runs.append(json.loads(Path(p).read_text()))
+                run = json.loads(Path(p).read_text())
             except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
                 print(f"roadx_ti: bench: --render {p}: not a bench JSON record ({_reason(exc)})", file=sys.stderr)
                 return 2
+            why = _record_problem(run)
+            if why:     # a run's summary JSON, {}, []: a KeyError at the rendering, after the results file
+                print(f"roadx_ti: bench: --render {p}: not a bench JSON record ({why})", file=sys.stderr)
+                return 2
+            runs.append(run)
         results = args.results or BENCH_DIR / "RESULTS.md"
         plot = args.plot or results.with_name("throughput.png")
         write_results(runs, results, plot)
@@ -155,6 +160,18 @@ def _reason(exc: Exception) -> str:
     return getattr(exc, "strerror", None) or " ".join(str(exc).split())[:120] or type(exc).__name__
 
 
+def _record_problem(run) -> str | None:
+    """Why ``run`` (parsed JSON) is not a bench run record, or None: a mapping with 'meta' (a
+    mapping) and 'rows' (a list of mappings)."""
+    if not isinstance(run, dict):
+        return f"a JSON {type(run).__name__}, not an object"
+    if not isinstance(run.get("meta"), dict) or not isinstance(run.get("rows"), list):
+        return "no 'meta' and 'rows'"
+    if not all(isinstance(row, dict) for row in run["rows"]):
+        return "its rows are not objects"
+    return None
+
+
 def _output_problem(results, plot, out_dir=None) -> str | None:
     """Why the bench could not write its outputs (checked before any case runs), or None."""
     import os
@@ -170,6 +187,8 @@ def _output_problem(results, plot, out_dir=None) -> str | None:
         folder = Path(path) if flag == "--out" else Path(path).parent
         while not folder.exists() and folder != folder.parent:
             folder = folder.parent
+        if not folder.is_dir() and (flag != "--out" or folder != Path(path)):
+            return f"{flag} {path}: {folder} is a file, not a folder"
         if not os.access(folder, os.W_OK):
             return f"{flag} {path}: cannot write in {folder}"
     return None

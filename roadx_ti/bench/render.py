@@ -287,6 +287,9 @@ def write_results(runs: list[dict], results: Path, plot: Path) -> None:
     old = results.read_text() if results.exists() else ""
     if SEPARATE_SECTION in old:   # runs made outside the harness (CLI runs, the tiling benchmark)
         text = text.rstrip("\n") + "\n\n" + old[old.index(SEPARATE_SECTION):]
-    results.write_text(text)
+    # the plot first: a results file linking to a plot that failed to be written is not left
     plot_throughput(runs, plot)
+    from roadx_ti.io.atomic import atomic_output
+    with atomic_output(results) as tmp:
+        Path(tmp).write_text(text)
 
