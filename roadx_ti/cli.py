@@ -304,6 +304,25 @@ def _refuse_writing_over(cfg, out: Path, config_path) -> None:
                                  "output name (or move the file)")
 
 
+def _warn_stale_sidecars(cfg, out: Path) -> None:
+    """An earlier run's picture or DTM beside the output that this run does not write again (the
+    picture off, a tiled run, no DTM) would sit beside results it does not show: say so."""
+    if cfg.tiled and cfg.output.mode == "per-file":
+        return
+    from roadx_ti.config import output_stem
+
+    stem = output_stem(out)
+    left = []
+    if not cfg.output.report_png or cfg.tiled:
+        left.append(Path(f"{stem}.png"))
+    if cfg.dtm_path() is None:
+        left.append(Path(f"{stem}.dtm.tif"))
+    for path in left:
+        if path.is_file():
+            log.warning("%s: an earlier run's file, which this run does not write again; it does not show this "
+                        "run's result (remove it)", path)
+
+
 def _check_distinct_outputs(out: Path, dtm: Path) -> None:
     """The DTM and its sidecars (x.json of x.npy, x.prj of x.asc) must not be the run's other files:
     output.dtm=r.summary.npy would write the DTM's placement over the run's summary."""
@@ -384,6 +403,7 @@ def _cmd_run(args) -> int:
     if cfg.dtm_path() is not None:
         _check_distinct_outputs(out, cfg.dtm_path())
     _refuse_writing_over(cfg, out, args.config)
+    _warn_stale_sidecars(cfg, out)
     from roadx_ti import memory
     if cfg.memory_limit:
         os.environ[memory.LIMIT_VARIABLE] = cfg.memory_limit     # also seen by local Dask workers

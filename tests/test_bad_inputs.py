@@ -1024,6 +1024,16 @@ def case_header_scale_of_a_million(d):
     return _tiny(d, src, message="invalid header: scales [1e+06, 1e+06, 1e+06]")
 
 
+def case_an_earlier_picture_beside_the_output(d):
+    """result.png of an earlier run beside --output result.laz of a run that writes no picture: a
+    warning names it (it was left beside results it does not show, silently)."""
+    (d / "out").mkdir()
+    (d / "out" / "result.png").write_bytes(b"an earlier run's picture")
+    src = _ground_laz(d)
+    return _tiny(d, src, code=0, warning="result.png: an earlier run's file, which this run does not write",
+                 check=lambda c: _las_result(c, src))
+
+
 def case_merged_catalog_led_by_an_empty_file(d):
     """A catalog whose first file is empty with a default header (scales 0.001, offsets 0) merged
     into one LAZ: the output takes the first file with points' header, every record bit-exact
