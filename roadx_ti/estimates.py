@@ -65,6 +65,14 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     caller left repeated positions out already (the pipeline), so they are not looked for."""
     from roadx_ti.kernels.neighbors import knn
 
+    if survey_points is None and cloud.n:
+        # a whole cloud: its isolated points (strays far off, roadx_ti.isolation) left out, whose
+        # occupied cells lowered the density and whose draws moved every estimate
+        from roadx_ti.isolation import SMALL_PART, isolated
+
+        far = isolated(cloud.xyz, SMALL_PART)
+        if far is not None:
+            cloud = cloud.subset(np.flatnonzero(~far))
     n = cloud.n
     total = n if survey_points is None else int(survey_points)
     area = occupied_area(cloud.xyz[:, :2]) if area is None else float(area)

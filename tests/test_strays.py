@@ -17,6 +17,7 @@ from roadx_ti import isolation
 from roadx_ti.cloud import Cloud
 from roadx_ti.errors import DataError
 from roadx_ti.stages.base import StageContext
+from tests.conftest import REPO
 
 STRAYS = np.array([[20_000.0, 3.0, 0.5], [5.0, -20_000.0, -400.0]], np.float32)
 
@@ -294,3 +295,24 @@ def test_tiled_run_with_strays_tiles_only_occupied_space(tmp_path):
     assert stray[1] < 3 * plain[1] + 10
     assert (stray[2][others] == plain[2]).mean() >= 0.999
     assert (stray[2][~others] == 1).all()                          # alone in their tiles: not ground
+
+
+def test_roof_pipeline_labels_the_others_as_without_strays():
+    """The roof pipeline on a synthetic als-roof scene with three points 20-50 km off: every other
+    point gets the label it gets without them (the non-ground density counted the strays' cells,
+    and the covered test's and over-roof grids were anchored at their corner: 21 of 40,000 labels
+    moved)."""
+    from roadx_ti import config, pipelines, synthetic
+
+    scene = synthetic.generate("als-roof", 40_000, seed=1)
+    far = scene.xyz[:3].copy()
+    far[:, 0] += np.array([20_000.0, 35_000.0, 50_000.0], np.float32)
+    keep = np.concatenate([np.arange(scene.n), np.arange(3)])
+    stray = scene.subset(keep)
+    stray.xyz[scene.n:] = far
+    cfg = config.load(REPO / "configs" / "roof_als.yaml")
+
+    def labels(cloud):
+        return pipelines.run(cloud, pipelines.build_stages(cfg.stage_list()),
+                             ctx=StageContext(seed=cfg.seed)).classification
+    np.testing.assert_array_equal(labels(stray)[:scene.n], labels(scene))

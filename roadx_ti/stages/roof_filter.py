@@ -103,6 +103,7 @@ from roadx_ti.cloud import Cloud
 from roadx_ti.estimates import MAD_TO_SIGMA
 from roadx_ti.segments import segment_covariance, segment_medians
 from roadx_ti.sorted_keys import find
+from roadx_ti.isolation import SMALL_PART, corner_without_isolated, isolated_in
 from roadx_ti.stages.base import (MIN_CELL, CLASS_BUILDING, CLASS_OTHER, DATA_EDGE, PositiveOrAuto, Stage, StageContext,
                                   StageOptions, StageResult, estimate, spacing_cell, survey_spacing)
 
@@ -359,7 +360,7 @@ def _in_window(keys: np.ndarray, around: np.ndarray, span: int, rows: int) -> np
 
 
 def over_roofs(xyz: np.ndarray, core: np.ndarray, grown: np.ndarray, cell: float, height: float,
-               reach: float) -> np.ndarray:
+               reach: float, origin=None) -> np.ndarray:
     """bool per point: footprint completion attached it (``grown`` >= 0, ``core`` < 0), it lies in
     a plan cell (side ``cell`` m) holding roof points of ``core``, more than ``height`` m above the
     highest of them, and no roof point lies within ``reach`` m of it in 3D (scipy cKDTree,
@@ -370,7 +371,10 @@ def over_roofs(xyz: np.ndarray, core: np.ndarray, grown: np.ndarray, cell: float
     if not len(roof) or not len(new):
         return out
     pts = np.asarray(xyz, np.float64)
-    ij = np.floor((pts[:, :2] - pts[:, :2].min(axis=0)) / cell).astype(np.int64)
+    # cells from the corner of the points less the isolated ones (origin): a stray far off moved
+    # every cell border (isolation.corner_without_isolated)
+    lo = pts[:, :2].min(axis=0) if origin is None else np.asarray(origin, np.float64)
+    ij = np.floor((pts[:, :2] - lo) / cell).astype(np.int64)
     keys = ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1]
     order = np.argsort(keys[roof], kind="stable")
     roof_keys = keys[roof][order]
@@ -683,7 +687,10 @@ class RoofFilter(Stage):
         elif ctx.facts.get("point_density"):
             density, density_source = float(ctx.facts["point_density"]), "facts"
         else:
-            density, density_source = occupied_density(cloud.xyz[:, :2], o.density_cell), "non_ground"
+            # isolated points (strays far off, roadx_ti.isolation) add occupied cells but no roof
+            far = isolated_in(cloud.xyz, SMALL_PART, ctx)
+            kept_xy = cloud.xyz[:, :2] if far is None else cloud.xyz[~far, :2]
+            density, density_source = occupied_density(kept_xy, o.density_cell), "non_ground"
         min_points = density * o.min_roof_area
         cell, wall_reach = self.footprint_cell_and_wall_reach(ctx)
         sizes = np.bincount(segment[segment >= 0], minlength=count)
@@ -810,7 +817,8 @@ class RoofFilter(Stage):
                 cell=cell, inside_reach=o.inside_reach, wall_reach=wall_reach,
                 surface_tol=o.surface_tol, near_tol=o.superstructure_height))
             if o.over_roof_reach > 0:
-                hovering = over_roofs(cloud.xyz, core, grown, cell, o.superstructure_height, o.over_roof_reach)
+                hovering = over_roofs(cloud.xyz, core, grown, cell, o.superstructure_height, o.over_roof_reach,
+                                      origin=corner_without_isolated(cloud.xyz, ctx))
                 grown = np.where(hovering, -1, grown)
             grown = np.where(roof, segment, grown)
             attached = int(np.count_nonzero(grown >= 0) - np.count_nonzero(roof))
@@ -903,7 +911,8 @@ class RoofFilter(Stage):
             from roadx_ti.kernels.grid_min import overtopped
 
             cell = self.footprint_cell_and_wall_reach(ctx)[0]
-            covered = np.asarray(overtopped(cloud.xyz, cell, max(o.covered_clearance, cell))) != 0
+            covered = np.asarray(overtopped(cloud.xyz, cell, max(o.covered_clearance, cell),
+                                            origin=corner_without_isolated(cloud.xyz, ctx))) != 0
             grown, info["covered_points"] = covered_completion(
                 cloud.xyz, knn, np.where(roof, segment, -1), grown, eligible & covered, float(tol), float(noise),
                 required_planar_neighbours(o.edge_support, int(np.shape(knn)[1])))

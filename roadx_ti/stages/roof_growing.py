@@ -218,4 +218,8 @@ class RoofGrowing(Stage):
 
         o = self.options
         cell = default_footprint_cell(ctx) if o.covered_cell == "auto" else float(o.covered_cell)
-        return np.asarray(overtopped(cloud.xyz, cell, max(o.covered_clearance, cell))) != 0
+        from roadx_ti.isolation import corner_without_isolated
+
+        # cells from the corner of the points less the isolated ones (a stray moved every border)
+        return np.asarray(overtopped(cloud.xyz, cell, max(o.covered_clearance, cell),
+                                     origin=corner_without_isolated(cloud.xyz, ctx))) != 0
