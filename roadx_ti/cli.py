@@ -446,8 +446,8 @@ def _cmd_run(args) -> int:
     written.update({name: "float32" for stage, _ in stage_specs for name in stage_class(stage).writes})
     io.check_writable(out, cloud, written)
     if cfg.input.paths:
-        from roadx_ti.io.las_write import check_laz_wave_packets_of
-        check_laz_wave_packets_of(out, cfg.input.paths[0])
+        from roadx_ti.io.las_write import check_writable_records_of
+        check_writable_records_of(out, cfg.input.paths[0])
 
     from roadx_ti.io import crs as io_crs
     crs = io_crs.of_cloud(cloud)

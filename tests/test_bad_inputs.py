@@ -1034,6 +1034,24 @@ def case_an_earlier_picture_beside_the_output(d):
                  check=lambda c: _las_result(c, src))
 
 
+def case_undocumented_extra_bytes(d):
+    """Point records 59 bytes longer than their format with no Extra Bytes record (undocumented
+    extra bytes, valid LAS) into LAZ: exit 1 before the stages, the way out named (the write failed
+    after the whole pipeline with laspy's 'len(offsets) (3) is not the same as ...')."""
+    import struct
+
+    base = write_las(d / "base.las", bumpy_ground(3000))
+    raw = base.read_bytes()
+    start, length = struct.unpack_from("<I", raw, 96)[0], struct.unpack_from("<H", raw, 105)[0]
+    records = np.frombuffer(raw[start:], np.uint8).reshape(3000, length)
+    longer = np.hstack([records, np.tile(np.arange(59, dtype=np.uint8), (3000, 1))])
+    header = bytearray(raw[:start])
+    struct.pack_into("<H", header, 105, length + 59)
+    src = d / "in" / "undocumented.las"
+    src.write_bytes(bytes(header) + longer.tobytes())
+    return _tiny(d, src, message="its point records carry 59 undocumented extra bytes", max_seconds=30)
+
+
 def case_merged_catalog_led_by_an_empty_file(d):
     """A catalog whose first file is empty with a default header (scales 0.001, offsets 0) merged
     into one LAZ: the output takes the first file with points' header, every record bit-exact

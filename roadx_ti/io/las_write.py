@@ -247,6 +247,23 @@ def check_laz_wave_packets(path, las: laspy.LasData, state: dict) -> None:
                          "them wrongly); write .las instead")
 
 
+def check_writable_records_of(path, source) -> None:
+    """Before a run: InputError when the LAS/LAZ ``source``'s records cannot be written back to the
+    LAS/LAZ ``path`` (more than 3 undocumented extra bytes per point: laspy declares them as one
+    undocumented field it cannot read back, and the write failed after the whole pipeline), then
+    check_laz_wave_packets_of."""
+    if not str(path).lower().endswith((".las", ".laz")) or not str(source).lower().endswith((".las", ".laz")):
+        return
+    with laspy.open(source) as reader:
+        undocumented = [d for d in reader.header.point_format.extra_dimensions if d.name == "ExtraBytes"]
+    if undocumented and undocumented[0].num_elements > 3:
+        raise InputError(f"{source}: its point records carry {undocumented[0].num_elements} undocumented extra bytes "
+                         "(no Extra Bytes record describes them), which a LAS/LAZ output cannot carry back "
+                         "readably; describe them (an Extra Bytes VLR) or drop them first (e.g. pdal translate), "
+                         "or write .ply / .npz")
+    check_laz_wave_packets_of(path, source)
+
+
 def check_laz_wave_packets_of(path, source) -> None:
     """check_laz_wave_packets over the records of the LAS/LAZ file ``source`` (decoded only when it
     holds point format 9 or 10 and ``path`` is LAZ): before a run, not after its pipeline."""
