@@ -52,7 +52,12 @@ class Cloud:
 
     @property
     def has_color(self) -> bool:
-        return self.rgb is not None
+        """Colour that says something: an RGB field whose values vary from point to point (one
+        colour for every point, a placeholder some writers fill in, is no cue: the road stage
+        already read it so, the roof stage took it for colour)."""
+        if self.rgb is None or not len(self.rgb):
+            return False
+        return bool(np.any(self.rgb.max(axis=0) != self.rgb.min(axis=0)))
 
     def rgb8(self) -> np.ndarray | None:
         """Colour as float32 in 0..255 whatever the stored depth (thresholds are in 8-bit units)."""

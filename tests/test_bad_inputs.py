@@ -17,7 +17,7 @@ import struct
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
@@ -1050,6 +1050,20 @@ def case_undocumented_extra_bytes(d):
     src = d / "in" / "undocumented.las"
     src.write_bytes(bytes(header) + longer.tobytes())
     return _tiny(d, src, message="its point records carry 59 undocumented extra bytes", max_seconds=30)
+
+
+def case_one_colour_for_every_point_in_the_roof_pipeline(d):
+    """RGB fields holding one colour for every point (30000, 30000, 30000) through the roof
+    pipeline: no colour, as the road pipeline reads it, with its warning (it took the placeholder
+    for colour: vegetation cue rgb_com)."""
+    from roadx_ti import io, synthetic
+
+    scene = synthetic.generate("als-roof", 20_000, seed=1)
+    src = d / "in" / "grey.las"
+    io.write(src, replace(scene, rgb=np.full((scene.n, 3), 30000, np.uint16), color_depth=16),
+             classification=scene.classification)
+    return _run(CONFIGS / "roof_als.yaml", d, src, code=0, extra=["--set", "output.report_png=false"],
+                warning="roof_growing: the input has no colour", check=lambda c: c.output.is_file())
 
 
 def case_merged_catalog_led_by_an_empty_file(d):
