@@ -219,3 +219,20 @@ def test_als_sheds_are_other_and_v1_keeps_them_building():
         dx, dy = xy[:, 0] - cx, xy[:, 1] - cy
         inside |= (np.abs(dx * c + dy * s) <= hx + over + 0.1) & (np.abs(-dx * s + dy * c) <= hy + over + 0.1)
     assert inside.all()
+
+
+def test_a_density_beyond_one_block_of_points_is_said(caplog):
+    """--density asking for more points per m2 than the point count covers over the smallest scene
+    (one block): the scene is that block, sparser, and a warning says so (it was silent)."""
+    import logging
+
+    from roadx_ti import synthetic
+
+    with caplog.at_level(logging.WARNING, logger="roadx_ti"):
+        cloud = synthetic.generate("uav-road", 30_000, seed=1, density=1000.0)
+    assert cloud.n == 30_000
+    assert any("cover the smallest uav-road scene (25 m across)" in r.getMessage() for r in caplog.records)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="roadx_ti"):
+        synthetic.generate("uav-road", 30_000, seed=1, density=20.0)
+    assert not any("smallest" in r.getMessage() for r in caplog.records)

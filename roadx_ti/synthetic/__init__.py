@@ -27,6 +27,7 @@ luminance (x 257; photogrammetry has no sensor intensity); als-roof a per-materi
 """
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
@@ -74,6 +75,12 @@ def generate(kind: str, n_points: int, seed: int = 0, density: float | None = No
     n, seed = int(n_points), int(seed)
     scene_cls = SCENES[kind]
     side = scene_cls.side_for(n, seed) if density is None else max(math.sqrt(n / float(density)), scene_cls.BLOCK)
+    if density is not None and side > math.sqrt(n / float(density)):
+        # the smallest scene is one block: fewer points than the density asks over it are sparser
+        logging.getLogger("roadx_ti").warning(
+            "--density %g: %s points cover the smallest %s scene (%g m across) at %.3g points per m2; give at "
+            "least %s points for that density", float(density), f"{n:,}", kind, scene_cls.BLOCK, n / side ** 2,
+            f"{math.ceil(float(density) * scene_cls.BLOCK ** 2):,}")
     if density is not None and side > MAX_SIDE:
         raise ValueError(f"{n:,} points at {density:g} points per m2 would be a scene {side / 1000:,.1f} km across, "
                          f"more than the {MAX_SIDE / 1000:g} km laid out at most (its streets and houses are laid "
