@@ -70,10 +70,10 @@ def parse_size(text) -> int:
 
 
 def format_size(n: float) -> str:
-    for unit, scale in (("TB", 2**40), ("GB", 2**30), ("MB", 2**20)):
+    for unit, scale in (("TB", 2**40), ("GB", 2**30), ("MB", 2**20), ("KB", 2**10)):
         if n >= scale:
-            return f"{n / scale:.1f} {unit}"
-    return f"{n / 2**10:.0f} KB"
+            return f"{n / scale:.1f} {unit}" if unit != "KB" else f"{n / scale:.0f} KB"
+    return f"{n:.0f} bytes"     # --memory-limit 1 read '0 KB
 
 
 def _read_int(path: str):

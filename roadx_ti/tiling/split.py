@@ -135,8 +135,9 @@ def split_catalog(plan: TilePlan, files: list[CatalogFile], where, *, log=None) 
     where = Path(where)
     free = shutil.disk_usage(where).free
     if free < DISK_MARGIN * need:
-        log.warning("not splitting the inputs for the tiles: about %.1f GB of point records would not fit "
-                    "in the %.1f GB free under %s; each tile decodes its files itself", need / 1e9, free / 1e9, where)
+        from roadx_ti.memory import format_size
+        log.warning("not splitting the inputs for the tiles: about %s of point records would not fit in the %s "
+                    "free under %s; each tile decodes its files itself", format_size(need), format_size(free), where)
         return Split(folder=None)
     remove_stale_folders(where, log)
     prefix = f"{FOLDER_PREFIX}p{os.getpid()}-{host_tag()}-"
