@@ -795,7 +795,9 @@ def case_catalog_with_a_truncated_file(d):
     folder = _tiles_folder(d)
     data = (folder / "b.laz").read_bytes()
     (folder / "c.laz").write_bytes(data[: len(data) // 3])
-    return _run(CONFIGS / "ground.yaml", d, folder, message="c.laz: truncated or corrupt")
+    def check(c):     # said once (it was wrapped in itself: 'c.laz: truncated ... (c.laz: truncated ...)')
+        assert c.proc.stderr.count("truncated or corrupt") == 1, c.proc.stderr
+    return _run(CONFIGS / "ground.yaml", d, folder, message="c.laz: truncated or corrupt", check=check)
 
 
 def case_tile_size_far_too_small(d):
@@ -1386,6 +1388,8 @@ def test_bad_input(name, catalogue):
             assert case.output.resolve() in case.hashes     # only 'output is input' cases
         else:
             assert not case.output.with_suffix(".summary.json").exists()
+        if case.check is not None:     # what else a refusal must leave as it was, or say
+            case.check(case)
     else:
         assert case.warning in proc.stderr, proc.stderr
         assert case.output.is_file()

@@ -159,6 +159,8 @@ def check_structure(path) -> None:
 
 
 def _las_error(path, exc: Exception) -> InputError:
+    if isinstance(exc, InputError):     # already names the file and says what is wrong
+        return exc
     text = " ".join(str(exc).split()) or type(exc).__name__
     if "too small" in text or "to small" in text or "signature" in text.lower():
         return fail(path, f"not a LAS/LAZ file ({text})")
