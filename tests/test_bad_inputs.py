@@ -408,39 +408,6 @@ def case_misspelt_road_weight(d):
                            "stages[5].road_regions.weights = {'colr': 1}: unknown weight 'colr'")
 
 
-def case_a_boolean_for_a_count(d):
-    """sor.k = true: exit 2 (pydantic's lax mode ran SOR with k = 1)."""
-    return _option_refused(d, "demo.yaml", "stages.sor.k=true", "stages[1].sor.k = True: must be a number, not True")
-
-
-def case_a_text_for_a_count(d):
-    """sor.k = '20' (quoted in YAML): exit 2 (it ran as the number 20)."""
-    return _option_refused(d, "demo.yaml", "stages.sor.k='20'", "stages[1].sor.k = '20': must be a number, not '20'")
-
-
-def case_booleans_for_classes(d):
-    """evaluate.truth_classes = [true]: exit 2 (it scored against class 1)."""
-    return _option_refused(d, "demo.yaml", "evaluate.truth_classes=[true]", "must be numbers, not True")
-
-
-def case_nan_for_a_threshold(d):
-    """sor.std_ratio = .nan: exit 2 (a NaN threshold passed gt=0's check unseen)."""
-    return _option_refused(d, "demo.yaml", "stages.sor.std_ratio=.nan",
-                           "stages[1].sor.std_ratio = nan: Input should be a finite number")
-
-
-def case_infinite_cloth_resolution(d):
-    """cloth_smooth.cloth_resolution = .inf: exit 2 (a NaN-to-integer error in the cloth kernel)."""
-    return _option_refused(d, "demo.yaml", "stages.cloth_smooth.cloth_resolution=.inf",
-                           "cloth_resolution = inf: Input should be a finite number")
-
-
-def case_a_cell_of_1e_300(d):
-    """grid_slope.step = 1e-300: exit 2, the least cell named (an OverflowError of the cell keys)."""
-    return _option_refused(d, "demo.yaml", "stages.grid_slope.step=1e-300",
-                           "stages[3].grid_slope.step = 1e-300: Input should be greater than or equal to 0.001")
-
-
 def case_a_tile_size_of_1e_300(d):
     """--tile-size 1e-300: exit 2 with the tile count and a size to use (an OverflowError of the
     tile plan's cell indices)."""
@@ -466,11 +433,35 @@ def case_yaml_merge_key(d):
     return _run(config, d, src, code=0, check=check)
 
 
-def case_pipeline_unlike_its_stages(d):
-    """pipeline = roof over the road stages: exit 2 naming the stage and its class (it wrote road
-    class 11, scored class 6: no accuracy, a picture titled 'roof')."""
-    return _option_refused(d, "demo.yaml", "pipeline=roof",
-                           "pipeline = 'roof', but stages[5] road_regions labels class 11 (road), not 6")
+# Options refused in one line, exit 2, before the input is read: (assignment, message, what it
+# was). Numbers are numbers (roadx_ti.option_rules), cells at least 1 mm, the pipeline that of its
+# labelling stage.
+REFUSED_OPTIONS = {
+    "a_boolean_for_a_count": ("stages.sor.k=true", "stages[1].sor.k = True: must be a number, not True",
+                              "ran SOR with k = 1"),
+    "a_text_for_a_count": ("stages.sor.k='20'", "stages[1].sor.k = '20': must be a number, not '20'",
+                           "ran as the number 20"),
+    "booleans_for_classes": ("evaluate.truth_classes=[true]", "must be numbers, not True", "scored class 1"),
+    "nan_for_a_threshold": ("stages.sor.std_ratio=.nan", "stages[1].sor.std_ratio = nan: Input should be a finite "
+                            "number", "passed gt=0's check unseen"),
+    "infinite_cloth_resolution": ("stages.cloth_smooth.cloth_resolution=.inf", "cloth_resolution = inf: Input "
+                                  "should be a finite number", "a NaN-to-integer error in the cloth kernel"),
+    "a_cell_of_1e_300": ("stages.grid_slope.step=1e-300", "stages[3].grid_slope.step = 1e-300: Input should be "
+                         "greater than or equal to 0.001", "an OverflowError of the cell keys"),
+    "pipeline_unlike_its_stages": ("pipeline=roof", "pipeline = 'roof', but stages[5] road_regions labels class 11 "
+                                   "(road), not 6", "wrote class 11, scored class 6: no accuracy"),
+}
+
+
+def _refused_option_case(assignment: str, message: str, was: str):
+    def case(d):
+        return _option_refused(d, "demo.yaml", assignment, message)
+    case.__doc__ = f"--set {assignment} on the demo config: exit 2 (it {was})."
+    return case
+
+
+for _name, _spec in REFUSED_OPTIONS.items():
+    globals()["case_" + _name] = _refused_option_case(*_spec)
 
 
 def case_road_weight_not_a_number(d):
