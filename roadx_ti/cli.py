@@ -608,6 +608,9 @@ def _run_tiled(cfg, out: Path, args) -> int:
         raise config.ConfigError("config error: input: tiled runs read files; give input.paths or --input")
     from roadx_ti.tiling.run import dtm_output
     inputs = [f.path for f in tiling.catalog(cfg.input.paths, warn=False)]
+    if cfg.output.report_png:
+        # the echoed config says report_png: true; the picture is drawn from one cloud in memory
+        log.info("tiled runs write no picture (output.report_png applies to untiled runs)")
     dtm_path = dtm_output(cfg, out, cfg.output.mode)
     if dtm_path is not None and (cfg.output.mode != "per-file" or isinstance(cfg.output.dtm, str)):
         # (per-file's own dtm.tif goes into the output folder, made below)
