@@ -282,8 +282,9 @@ def _sidecars_written(cfg, out: Path) -> dict:
     if cfg.tiled and cfg.output.mode == "per-file":
         return {"summary": out / "summary.json", "config": out / "config.yaml"}
     written = _output_paths(out)
-    if cfg.dtm_path() is not None:
-        written["DTM"] = cfg.dtm_path()
+    dtm = cfg.dtm_path()
+    if dtm is not None:     # with its placement (x.json of x.npy) or projection (x.prj of x.asc)
+        written.update({"DTM": dtm, "DTM placement": dtm.with_suffix(".json"), "DTM projection": dtm.with_suffix(".prj")})
     return written
 
 
@@ -382,6 +383,8 @@ def _cmd_run(args) -> int:
                       ("tile_size", "tiling.tile_size"), ("buffer", "tiling.buffer"),
                       ("output_mode", "output.mode"), ("memory_limit", "memory_limit")):
         value = getattr(args, flag)
+        if isinstance(value, float) and not math.isfinite(value):
+            value = ".nan" if math.isnan(value) else ("-.inf" if value < 0 else ".inf")   # YAML's spellings
         if value is not None:
             overrides.append(f"{key}={value}")
     cfg = config.load(args.config, overrides)

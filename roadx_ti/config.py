@@ -181,13 +181,15 @@ class RunConfig(_Strict):
         except StageOrderError as exc:
             raise ConfigError(f"config error: {exc}") from None
         target = PIPELINE_TARGET[self.pipeline]
-        for i, (name, _) in enumerate(out):
-            labels = stage_class(name).labels
-            if labels is not None and labels != target:
-                # pipeline: roof over the road stages wrote class 11 and scored class 6 (none)
-                pipeline = next(p for p, c in PIPELINE_TARGET.items() if c == labels)
-                raise ConfigError(f"config error: pipeline = {self.pipeline!r}, but stages[{i}] {name} labels class "
-                                  f"{labels} ({pipeline}), not {target}; set pipeline: {pipeline}")
+        labelling = [(i, name, stage_class(name).labels) for i, (name, _) in enumerate(out)
+                     if stage_class(name).labels is not None]
+        if labelling and labelling[-1][2] != target:
+            # the last labelling stage gives the output's classes: pipeline: roof over the road
+            # stages wrote class 11 and scored class 6 (none)
+            i, name, labels = labelling[-1]
+            pipeline = next(p for p, c in PIPELINE_TARGET.items() if c == labels)
+            raise ConfigError(f"config error: pipeline = {self.pipeline!r}, but stages[{i}] {name} labels class "
+                              f"{labels} ({pipeline}), not {target}; set pipeline: {pipeline}")
         return out
 
     @field_validator("memory_limit", mode="before")

@@ -15,44 +15,53 @@ import typing
 SHOWN_VALUE = 80
 
 
-def _kinds(annotation) -> set:
-    """What a field annotation accepts: 'number', 'bool', 'text', 'numbers' (a list or tuple of
-    numbers) or 'other', through Optional / Union / Annotated / Literal."""
+def _accepts(annotation) -> tuple[set, set]:
+    """(kinds, words) a field annotation accepts, through Optional / Union / Annotated / Literal:
+    kinds among 'number', 'bool', 'text' (any text), 'numbers' (a list or tuple of numbers) and
+    'other'; words: the texts a Literal allows ('auto')."""
     origin = typing.get_origin(annotation)
     if origin is typing.Annotated:
-        return _kinds(typing.get_args(annotation)[0])
+        return _accepts(typing.get_args(annotation)[0])
     if origin in (typing.Union, types.UnionType):
-        return set().union(*(_kinds(a) for a in typing.get_args(annotation)))
+        kinds, words = set(), set()
+        for member in typing.get_args(annotation):
+            k, w = _accepts(member)
+            kinds |= k
+            words |= w
+        return kinds, words
     if origin is typing.Literal:
         values = typing.get_args(annotation)
-        return {"bool" if isinstance(v, bool) else "text" if isinstance(v, str) else "number"
-                if isinstance(v, (int, float)) else "other" for v in values}
+        return ({"bool" for v in values if isinstance(v, bool)} | {"number" for v in values if isinstance(v, (int, float))
+                                                                      and not isinstance(v, bool)}), \
+            {v for v in values if isinstance(v, str)}
     if origin in (tuple, list):
-        inner = set().union(*(_kinds(a) for a in typing.get_args(annotation) if a is not Ellipsis)) or {"other"}
-        return {"numbers"} if inner <= {"number"} else {"other"}
+        inner = set()
+        for member in typing.get_args(annotation):
+            if member is not Ellipsis:
+                inner |= _accepts(member)[0]
+        return ({"numbers"} if inner and inner <= {"number"} else {"other"}), set()
+    if annotation is type(None):
+        return set(), set()         # None is YAML's null, never a boolean or a text
     if annotation is bool:
-        return {"bool"}
+        return {"bool"}, set()
     if annotation in (int, float):
-        return {"number"}
+        return {"number"}, set()
     if annotation is str:
-        return {"text"}
-    return {"other"}
-
-
-def _wrong(value, kinds: set) -> bool:
-    if isinstance(value, bool):
-        return "bool" not in kinds and "other" not in kinds
-    if isinstance(value, str):
-        return "text" not in kinds and "other" not in kinds
-    return False
+        return {"text"}, set()
+    return {"other"}, set()
 
 
 def number_or_error(annotation, value):
-    """``value`` unchanged, or ValueError when it is a boolean or a text where the field takes
-    numbers only (a number, or a list of numbers)."""
-    kinds = _kinds(annotation)
-    if "number" in kinds and _wrong(value, kinds):
-        raise ValueError(f"must be a number, not {value!r}")
+    """``value`` unchanged, or ValueError when it is a boolean or a text where the field takes a
+    number (and no boolean, or no such text: 'auto' where the field takes 'auto'), or a list of
+    numbers holding either."""
+    kinds, words = _accepts(annotation)
+    if "number" in kinds and "other" not in kinds:
+        if isinstance(value, bool) and "bool" not in kinds:
+            raise ValueError(f"must be a number, not {value!r}")
+        if isinstance(value, str) and "text" not in kinds and value not in words:
+            wanted = "a number" + "".join(f" or {w!r}" for w in sorted(words))
+            raise ValueError(f"must be {wanted}, not {value!r}")
     if "numbers" in kinds and isinstance(value, (list, tuple)):
         for item in value:
             if isinstance(item, (bool, str)):

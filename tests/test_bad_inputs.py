@@ -450,6 +450,12 @@ REFUSED_OPTIONS = {
                          "greater than or equal to 0.001", "an OverflowError of the cell keys"),
     "pipeline_unlike_its_stages": ("pipeline=roof", "pipeline = 'roof', but stages[5] road_regions labels class 11 "
                                    "(road), not 6", "wrote class 11, scored class 6: no accuracy"),
+    "a_boolean_for_a_number_or_auto": ("stages.grid_slope.noise_allowance=true", "noise_allowance = True: must be a "
+                                       "number, not True", "took it as 1.0"),
+    "a_text_for_a_number_or_auto": ("stages.grid_slope.noise_allowance=autox", "noise_allowance = 'autox': must be "
+                                    "a number or 'auto', not 'autox'", "was refused only for its type"),
+    "a_boolean_for_a_buffer": ("tiling.buffer=true", "tiling.buffer = True: must be a number, not True",
+                               "took it as a 1 m buffer"),
 }
 
 
@@ -1057,6 +1063,26 @@ def case_one_colour_for_every_point_in_the_roof_pipeline(d):
              classification=scene.classification)
     return _run(CONFIGS / "roof_als.yaml", d, src, code=0, extra=["--set", "output.report_png=false"],
                 warning="roof_growing: the input has no colour", check=lambda c: c.output.is_file())
+
+
+def case_dtm_placement_over_the_config(d):
+    """run e.json with output.dtm=e.npy: the DTM's placement file e.json would replace the config
+    it runs: exit 2, the config unchanged (it was overwritten, exit 0)."""
+    config = d / "e.json"
+    config.write_text((CONFIGS / "ground.yaml").read_text())
+    before = config.read_bytes()
+
+    def check(c):
+        assert config.read_bytes() == before
+    return _run(config, d, _ground_laz(d), extra=["--set", f"output.dtm={d / 'e.npy'}"], code=2,
+                message="the run writes its DTM placement file there, over the config file it runs", check=check)
+
+
+def case_ground_config_run_as_roof(d):
+    """The ground config (cloth_ground labels class 2) with pipeline = roof: exit 2 (it wrote class
+    2 and scored class 6: type I 100 %)."""
+    return _run(CONFIGS / "ground.yaml", d, _ground_laz(d), extra=["--set", "pipeline=roof"], code=2,
+                message="pipeline = 'roof', but stages[0] cloth_ground labels class 2 (ground), not 6")
 
 
 def case_merged_catalog_led_by_an_empty_file(d):

@@ -173,6 +173,7 @@ def test_command_line_mistakes_are_one_line(tmp_path, args, said):
     (["bench", "--quick", "--sizes", "1"], "a synthetic scene holds at least 1000 points"),  # an error row, exit 0
     (["bench", "--render", "empty.json"], "--render empty.json: not a bench JSON record (no 'meta' and 'rows')"),
     (["bench", "--render", "list.json"], "not a bench JSON record (a JSON list, not an object)"),  # TypeError
+    (["bench", "--render", "partial.json"], "not a complete bench JSON record (KeyError: 'machine')"),  # KeyError
     (["synth", "--kind", "uav-road", "--points", "1000", "--density", "1e-9", "-o", "x.laz"],
      "would be a scene 1,000.0 km across"),                                        # laid out for minutes
     (["run", str(REPO / "configs" / "ground.yaml"), "--input", "x.laz", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"],
@@ -186,6 +187,7 @@ def test_mistakes_in_the_other_commands_are_one_line_before_any_work(tmp_path, a
     (tmp_path / "a_file").write_bytes(b"\xea\x00 not json")
     (tmp_path / "empty.json").write_text("{}")
     (tmp_path / "list.json").write_text("[]")
+    (tmp_path / "partial.json").write_text('{"meta": {}, "rows": []}')
     before = sorted(p.name for p in tmp_path.iterdir())
     proc = run_cli(*args, cwd=tmp_path, timeout=120)
     line = error_line(proc, 2)

@@ -84,7 +84,13 @@ def main(args) -> int:
             runs.append(run)
         results = args.results or BENCH_DIR / "RESULTS.md"
         plot = args.plot or results.with_name("throughput.png")
-        write_results(runs, results, plot)
+        try:
+            write_results(runs, results, plot)
+        except (KeyError, TypeError, AttributeError, ValueError) as exc:
+            # a record with meta and rows but not a run's fields (a hand-edited or truncated one)
+            print(f"roadx_ti: bench: --render: not a complete bench JSON record ({type(exc).__name__}: "
+                  f"{_reason(exc)}); nothing written", file=sys.stderr)
+            return 2
         print(f"wrote {results} and {plot}", file=sys.stderr)
         return 0
     plan = _plan(args)

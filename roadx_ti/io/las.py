@@ -185,8 +185,9 @@ def _too_many(path, n: int) -> InputError:
 
 
 # m: the largest coordinate step (scale) and coordinate magnitude a survey's header can mean (a
-# scale of 1e6 put points 1e15 m off; no CRS on Earth, projected or geocentric, nears 1e9 m)
-MAX_SCALE = 10.0
+# scale of 1e6 put points 1e15 m off, one of 10 m 64 m apart over 250 km; no CRS on Earth,
+# projected or geocentric, nears 1e9 m)
+MAX_SCALE = 1.0
 MAX_COORDINATE = 1e9
 
 

@@ -622,7 +622,10 @@ def write_text(path, cloud: Cloud, classification=None, extra_dims=None, subset=
     world, cols = writable_columns(cloud, classification, extra_dims, subset)
     decimals = _coord_decimals(cloud)
     delimiter = "," if str(path).lower().endswith(".csv") else " "
-    formats = [f"%.{decimals}f"] * 3 + ["%d" if a.dtype.kind in "iub" else "%.9g" for a in cols.values()]
+    # float32 columns in 9 significant digits and float64 ones (GPS time, double extra dimensions)
+    # in 17: each reads back to the same value (9 digits put GPS times off by up to 0.5 s)
+    formats = [f"%.{decimals}f"] * 3 + ["%d" if a.dtype.kind in "iub" else "%.17g" if a.dtype.itemsize > 4 else "%.9g"
+                                         for a in cols.values()]
     text_columns(path, cols)
     table = np.empty((len(world), 3 + len(cols)), dtype=np.float64)
     table[:, :3] = world

@@ -172,8 +172,8 @@ class Stage:
     provides: ClassVar[tuple[str, ...]] = ()
     # the stage that must run right before this one (its graph over the same working points)
     right_after: ClassVar[str | None] = None
-    # the class a labelling stage gives its target (a road or roof stage): the config's pipeline
-    # must be the one of that class (config.PIPELINE_TARGET); None for the other stages
+    # the class a labelling stage gives its target (road, roof, ground): the config's pipeline must be
+    # the one of the last such stage's class (config.PIPELINE_TARGET); None for the other stages
     labels: ClassVar[int | None] = None
     # point_data keys of this stage's result written to the output as extra dimensions (untiled
     # runs; float32, NaN for a point the stage did not see)

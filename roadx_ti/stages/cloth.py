@@ -25,7 +25,7 @@ from roadx_ti.cloud import Cloud
 from roadx_ti.errors import DataError
 from roadx_ti.estimates import TERRAIN_CELL, TERRAIN_REACH
 from roadx_ti.kernels.cloth import LATTICE_PERIOD, ClothResult, LatticeTooLarge, csf
-from roadx_ti.stages.base import (MIN_CELL, CLASS_GROUND, GROUND_NOISE, GROUND_SURFACE, SURVEY_Z_MIN, GroundSurface, Stage,
+from roadx_ti.stages.base import (CLASS_GROUND, MIN_CELL, GROUND_NOISE, GROUND_SURFACE, SURVEY_Z_MIN, GroundSurface, Stage,
                                   StageContext, StageOptions, StageResult, estimate)
 
 # In a tile, the cloth starts above the survey's lowest point (as the whole run's does), but never
@@ -283,6 +283,7 @@ class ClothSmooth(_ClothStage):
 class ClothGround(_ClothStage):
     """P1: ground leaves the working set as class 2; the rest keeps its height above the cloth."""
     name = "cloth_ground"
+    labels = CLASS_GROUND
     Options = ClothGroundOptions
     provides = (GROUND_SURFACE, "height_above_ground")
 

@@ -18,7 +18,7 @@ from pydantic import Field, model_validator
 from roadx_ti import isolation
 from roadx_ti.chunks import over_chunks
 from roadx_ti.cloud import Cloud
-from roadx_ti.stages.base import (MIN_CELL, MIN_BUFFER, SAMPLED_SHARE, Stage, StageContext, StageOptions, StageResult,
+from roadx_ti.stages.base import (MIN_BUFFER, MIN_CELL, SAMPLED_SHARE, Stage, StageContext, StageOptions, StageResult,
                                   estimate)
 
 

@@ -19,7 +19,7 @@ from pydantic import Field
 
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.outliers import MAX_CLUSTER, low_noise
-from roadx_ti.stages.base import MIN_CELL, MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
+from roadx_ti.stages.base import MIN_BUFFER, MIN_CELL, Stage, StageContext, StageOptions, StageResult
 
 CLASS_LOW_NOISE = 7     # ASPRS: low point (noise)
 

@@ -44,7 +44,7 @@ from roadx_ti.cloud import Cloud
 from roadx_ti.estimates import MAD_TO_SIGMA
 from roadx_ti.kernels.regions import MAX_ROW
 from roadx_ti.road_graph import Weights, kerbless_road, label_road
-from roadx_ti.stages.base import MIN_CELL, CLASS_OTHER, CLASS_ROAD, MIN_BUFFER, Stage, StageContext, StageOptions, StageResult
+from roadx_ti.stages.base import CLASS_OTHER, CLASS_ROAD, MIN_BUFFER, MIN_CELL, Stage, StageContext, StageOptions, StageResult
 
 # m: a common kerb height (kerbs are commonly 8-16 cm): measured height noise that blurs steps of
 # this height gets a warning

@@ -101,10 +101,10 @@ from scipy.spatial import cKDTree
 
 from roadx_ti.cloud import Cloud
 from roadx_ti.estimates import MAD_TO_SIGMA
+from roadx_ti.isolation import SMALL_PART, corner_without_isolated, isolated_in
 from roadx_ti.segments import segment_covariance, segment_medians
 from roadx_ti.sorted_keys import find
-from roadx_ti.isolation import SMALL_PART, corner_without_isolated, isolated_in
-from roadx_ti.stages.base import (MIN_CELL, CLASS_BUILDING, CLASS_OTHER, DATA_EDGE, PositiveOrAuto, Stage, StageContext,
+from roadx_ti.stages.base import (CLASS_BUILDING, CLASS_OTHER, DATA_EDGE, MIN_CELL, PositiveOrAuto, Stage, StageContext,
                                   StageOptions, StageResult, estimate, spacing_cell, survey_spacing)
 
 # footprint_cell 'auto': FOOTPRINT_SPACINGS survey spacings, at least FOOTPRINT_MIN_CELL (m), and
