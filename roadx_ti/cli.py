@@ -119,7 +119,9 @@ def _classes(text: str, flag: str) -> list[int]:
         values = [int(v) for v in text.split(",") if v.strip()]
     except ValueError:
         raise UsageError(f"{flag} {text!r}: expected class numbers like 11 or 2,11") from None
-    if not values or any(not 0 <= v <= 255 for v in values):
+    if not values:
+        raise UsageError(f"{flag} {text!r}: names no class; give class numbers like 11 or 2,11")
+    if any(not 0 <= v <= 255 for v in values):
         raise UsageError(f"{flag} {text!r}: classes are integers 0..255")
     return values
 
@@ -611,6 +613,11 @@ def _run_tiled(cfg, out: Path, args) -> int:
         raise config.ConfigError("config error: input: tiled runs read files; give input.paths or --input")
     from roadx_ti.tiling.run import dtm_output
     inputs = [f.path for f in tiling.catalog(cfg.input.paths, warn=False)]
+    from roadx_ti.io.las_write import check_laz_wave_packets_of
+    merged = {}
+    for path in inputs:     # before the tiles, not at the merge (decodes only formats 9 / 10 into LAZ)
+        check_laz_wave_packets_of(out if cfg.output.mode == "merged" else out / Path(path).name, path,
+                                  merged if cfg.output.mode == "merged" else None)
     if cfg.output.report_png:
         # the echoed config says report_png: true; the picture is drawn from one cloud in memory
         log.info("tiled runs write no picture (output.report_png applies to untiled runs)")
@@ -722,7 +729,7 @@ def cmd_eval(args) -> int:
     from roadx_ti.metrics import class_mask, scores
 
     truth_classes = _classes(args.truth_classes, "--truth-classes")
-    pred_classes = _classes(args.pred_classes, "--pred-classes") if args.pred_classes else truth_classes
+    pred_classes = _classes(args.pred_classes, "--pred-classes") if args.pred_classes is not None else truth_classes
     for given, flag in ((args.pred, "--pred"), (args.truth, "--truth")):
         if Path(given).is_dir():
             raise UsageError(f"{flag} {given}: is a folder; eval compares two files point by point")

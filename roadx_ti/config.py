@@ -110,6 +110,9 @@ class EvaluateConfig(_Strict):
     def _one_class(cls, value):
         # --set evaluate.truth_classes=6: one class, as the list [6]
         value = [value] if isinstance(value, int) and not isinstance(value, bool) else value
+        if isinstance(value, list) and not value:
+            # [] fell back to the pipeline's class silently (null is how to say "the default")
+            raise ValueError("names no class; give the classes of the truth (e.g. [6]) or null for the pipeline's")
         if isinstance(value, list) and any(isinstance(v, int) and not 0 <= v <= 255 for v in value):
             raise ValueError("classes are integers 0..255 (LAS classification)")
         return value

@@ -456,6 +456,8 @@ REFUSED_OPTIONS = {
                                     "a number or 'auto', not 'autox'", "was refused only for its type"),
     "a_boolean_for_a_buffer": ("tiling.buffer=true", "tiling.buffer = True: must be a number, not True",
                                "took it as a 1 m buffer"),
+    "no_truth_class": ("evaluate.truth_classes=[]", "evaluate.truth_classes = []: names no class",
+                       "fell back to the pipeline's class silently"),
 }
 
 
@@ -1001,9 +1003,8 @@ def case_input_name_not_utf8(d):
     return _tiny(d, odd, code=0, extra=["--set", "output.report_png=true"], check=check)
 
 
-def case_laz_of_wave_packets_from_two_channels(d):
-    """Point format 9 with wave packets from two scanner channels into LAZ: exit 1 before the
-    stages, .las named (lazrs wrote the packets' offsets and x_t of 99.9 % of the points wrong, exit 0)."""
+def _two_channel_waves(d) -> Path:
+    """A point format 9 LAS whose wave packets come from two scanner channels."""
     src = write_las(d / "in" / "waves.las", bumpy_ground(3000), point_format=9)
     las = laspy.read(src)
     n = len(las.points)
@@ -1013,7 +1014,19 @@ def case_laz_of_wave_packets_from_two_channels(d):
     las.x_t = np.linspace(-1.0, 1.0, n).astype(np.float32)
     las.scanner_channel = (np.arange(n) % 2).astype(np.uint8)
     las.write(src)
-    return _tiny(d, src, message="LAZ cannot keep these points' wave packet fields", max_seconds=30)
+    return src
+
+
+def case_laz_of_wave_packets_from_two_channels(d):
+    """Point format 9 with wave packets from two scanner channels into LAZ: exit 1 before the
+    stages, .las named (lazrs wrote the packets' offsets and x_t of 99.9 % of the points wrong, exit 0)."""
+    return _tiny(d, _two_channel_waves(d), message="LAZ cannot keep these points' wave packet fields", max_seconds=30)
+
+
+def case_laz_of_wave_packets_tiled(d):
+    """The same in tiles: refused before the tiles run (it was refused at the merge, after them)."""
+    return _tiny(d, _two_channel_waves(d), extra=["--tile-size", "10"], max_seconds=30,
+                 message="LAZ cannot keep these points' wave packet fields")
 
 
 def case_header_scale_of_a_million(d):

@@ -69,6 +69,9 @@ def test_eval_count_mismatch_is_data_error(tmp_path, road_scene):
     assert "counts must be equal" in proc.stderr and "Traceback" not in proc.stderr
     proc = run_cli("eval", "--pred", str(small), "--truth", str(small), "--truth-classes", "x")
     assert proc.returncode == 2 and "--truth-classes" in proc.stderr
+    # an empty --pred-classes fell back to the truth classes silently
+    proc = run_cli("eval", "--pred", str(small), "--truth", str(small), "--truth-classes", "11", "--pred-classes", "")
+    assert proc.returncode == 2 and "--pred-classes '': names no class" in proc.stderr
     table = tmp_path / "classes.csv"
     table.write_text("x,y,z,classification\n0,0,0,2\n1,1,1,300\n")
     proc = run_cli("eval", "--pred", str(table), "--truth", str(table), "--truth-classes", "2")

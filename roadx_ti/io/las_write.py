@@ -264,15 +264,16 @@ def check_writable_records_of(path, source) -> None:
     check_laz_wave_packets_of(path, source)
 
 
-def check_laz_wave_packets_of(path, source) -> None:
+def check_laz_wave_packets_of(path, source, state: dict | None = None) -> None:
     """check_laz_wave_packets over the records of the LAS/LAZ file ``source`` (decoded only when it
-    holds point format 9 or 10 and ``path`` is LAZ): before a run, not after its pipeline."""
+    holds point format 9 or 10 and ``path`` is LAZ): before a run, not after its pipeline.
+    ``state``: shared over the files that go into one output (a catalog merged)."""
     if not str(path).lower().endswith(".laz") or not str(source).lower().endswith((".las", ".laz")):
         return
     with laspy.open(source) as reader:
         if reader.header.point_format.id not in (9, 10):
             return
-        state = {}
+        state = {} if state is None else state
         for chunk in reader.chunk_iterator(CHUNK_POINTS):
             check_laz_wave_packets(path, laspy.LasData(reader.header, chunk), state)
 
