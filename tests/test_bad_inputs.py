@@ -1098,6 +1098,17 @@ def case_ground_config_run_as_roof(d):
                 message="pipeline = 'roof', but stages[0] cloth_ground labels class 2 (ground), not 6")
 
 
+def case_withheld_points(d):
+    """Half the points flagged withheld (LAS: to be treated as deleted): processed like the others,
+    as PDAL does, with a warning naming how many (they went unsaid)."""
+    src = write_las(d / "in" / "withheld.las", bumpy_ground(3000))
+    las = laspy.read(src)
+    las.withheld = (np.arange(3000) % 2).astype(np.uint8)
+    las.write(src)
+    return _tiny(d, src, code=0, warning="1500 of 3000 points are flagged withheld",
+                 check=lambda c: _las_result(c, src))
+
+
 def case_merged_catalog_led_by_an_empty_file(d):
     """A catalog whose first file is empty with a default header (scales 0.001, offsets 0) merged
     into one LAZ: the output takes the first file with points' header, every record bit-exact

@@ -334,6 +334,13 @@ def read_las(path, bounds=None, origin=None, keep_records: bool = True) -> Cloud
                 if header.point_count > MAX_POINTS:
                     raise _too_many(path, header.point_count)
                 las = _read_all(path, reader)
+                withheld = int(np.count_nonzero(np.asarray(las.withheld))) if len(las.points) else 0
+                if withheld:
+                    # LAS marks them "to be treated as deleted"; PDAL keeps them too: said, not dropped
+                    warn_once(("withheld", str(path)), "%s: %d of %d points are flagged withheld (LAS: to be "
+                              "treated as deleted); they are processed like the others (drop them first if they "
+                              "should not be, e.g. pdal translate with filters.range --filters.range.limits="
+                              "'Withheld[0:0]')", path, withheld, len(las.points))
             else:
                 points = _read_window(path, reader, bounds)
                 las = laspy.LasData(copy.deepcopy(header), points)
