@@ -6,6 +6,7 @@ never a traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
 import logging
 import math
@@ -284,25 +285,25 @@ def _sidecars_written(cfg, out: Path) -> dict:
     if cfg.tiled and cfg.output.mode == "per-file":
         return {"summary": out / "summary.json", "config": out / "config.yaml"}
     written = _output_paths(out)
-    dtm = cfg.dtm_path()
-    if dtm is not None:     # with its placement (x.json of x.npy) or projection (x.prj of x.asc)
-        written.update({"DTM": dtm, "DTM placement": dtm.with_suffix(".json"), "DTM projection": dtm.with_suffix(".prj")})
+    if cfg.dtm_path() is not None:
+        written.update(_dtm_files(cfg.dtm_path()))
     return written
+
+
+def _dtm_files(dtm: Path) -> dict:
+    """The DTM and the files a DTM writer puts beside it (x.json of x.npy, x.prj of x.asc)."""
+    return {"DTM": dtm, "DTM placement": dtm.with_suffix(".json"), "DTM projection": dtm.with_suffix(".prj")}
 
 
 def _refuse_writing_over(cfg, out: Path, config_path) -> None:
     """A sidecar of the run must not be the config file it runs or one of its inputs (a config named
     k.config.yaml beside --output k.laz was replaced by the resolved copy, its comments lost)."""
-    protected = [("the config file it runs", Path(config_path))] + [("its input", Path(p)) for p in cfg.input.paths]
+    from roadx_ti.io.atomic import same_file
+
+    protected = [("the config file it runs", config_path)] + [("its input", p) for p in cfg.input.paths]
     for kind, path in _sidecars_written(cfg, out).items():
         for what, other in protected:
-            same = Path(os.path.abspath(path)) == Path(os.path.abspath(other))
-            if not same and path.exists() and other.exists():
-                try:
-                    same = os.path.samefile(path, other)
-                except OSError:
-                    pass
-            if same:
+            if same_file(path, other):
                 raise UsageError(f"{path}: the run writes its {kind} file there, over {what}; choose another "
                                  "output name (or move the file)")
 
@@ -314,12 +315,11 @@ def _warn_stale_sidecars(cfg, out: Path) -> None:
         return
     from roadx_ti.config import output_stem
 
-    stem = output_stem(out)
     left = []
     if not cfg.output.report_png or cfg.tiled:
-        left.append(Path(f"{stem}.png"))
+        left.append(_output_paths(out)["png"])
     if cfg.dtm_path() is None:
-        left.append(Path(f"{stem}.dtm.tif"))
+        left.append(Path(f"{output_stem(out)}.dtm.tif"))     # config.dtm_path's default
     for path in left:
         if path.is_file():
             log.warning("%s: an earlier run's file, which this run does not write again; it does not show this "
@@ -330,9 +330,8 @@ def _check_distinct_outputs(out: Path, dtm: Path) -> None:
     """The DTM and its sidecars (x.json of x.npy, x.prj of x.asc) must not be the run's other files:
     output.dtm=r.summary.npy would write the DTM's placement over the run's summary."""
     mine = {"output": out, **_output_paths(out)}
-    dtm_files = [dtm, dtm.with_suffix(".json"), dtm.with_suffix(".prj")]
     for name, path in mine.items():
-        for other in dtm_files:
+        for other in _dtm_files(dtm).values():
             if Path(os.path.abspath(path)) == Path(os.path.abspath(other)):
                 raise UsageError(f"output.dtm = {dtm}: its file {other} would be the run's {name} file; "
                                  "give the DTM another name")
@@ -343,26 +342,28 @@ def cmd_run(args) -> int:
 
     # the run's outputs (cloud, summary, config, DTM, picture) replace earlier ones together or not at
     # all, and the folders made for them go again when the run fails
-    _MADE_FOLDERS.clear()
-    try:
-        with output_group():
-            return _cmd_run(args)
-    except BaseException:
-        _remove_made_folders()
-        raise
+    with _removing_made_folders(), output_group():
+        return _cmd_run(args)
 
 
-# output folders this run made (deepest last), removed again when it fails while they are empty
+# output folders this command made (deepest last), removed again when it fails while they are empty
 _MADE_FOLDERS: list = []
 
 
-def _remove_made_folders() -> None:
-    for folder in reversed(_MADE_FOLDERS):
-        try:
-            folder.rmdir()               # only an empty folder goes
-        except OSError:
-            pass
+@contextlib.contextmanager
+def _removing_made_folders():
+    """Inside, the output folders _mkdir makes are noted; when the command fails they go again
+    where they are empty."""
     _MADE_FOLDERS.clear()
+    try:
+        yield
+    except BaseException:
+        for folder in reversed(_MADE_FOLDERS):
+            with contextlib.suppress(OSError):
+                folder.rmdir()               # only an empty folder goes
+        raise
+    finally:
+        _MADE_FOLDERS.clear()
 
 
 def _mkdir(folder: Path) -> None:
@@ -799,12 +800,8 @@ def cmd_info(args) -> int:
 def cmd_accuracy(args) -> int:
     from roadx_ti import accuracy
 
-    _MADE_FOLDERS.clear()
-    try:
+    with _removing_made_folders():      # the report's folder, made for a run that failed, when empty
         return accuracy.main(args)
-    except BaseException:
-        _remove_made_folders()      # the report's folder, made for a run that failed, when empty
-        raise
 
 
 def cmd_bench(args) -> int:

@@ -14,11 +14,11 @@ from pathlib import Path
 from typing import Any, Literal, Union
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
+from pydantic import Field, PrivateAttr, ValidationError, field_validator, model_validator
 
 from roadx_ti import backend as _backend
 from roadx_ti.dtm import FORMATS as DTM_FORMATS
-from roadx_ti.option_rules import number_or_error, shown
+from roadx_ti.option_rules import CheckedOptions, shown
 from roadx_ti.stages import REGISTRY, stage_class
 
 
@@ -26,15 +26,8 @@ class ConfigError(ValueError):
     """A configuration mistake; the message is one line meant for the user."""
 
 
-class _Strict(BaseModel):
-    """Unknown keys are errors; numbers are finite and neither booleans nor texts
-    (roadx_ti.option_rules; a field that means something by infinity allows it itself)."""
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
-
-    @field_validator("*", mode="before")
-    @classmethod
-    def _numbers_are_numbers(cls, value, info):
-        return number_or_error(cls.model_fields[info.field_name].annotation, value)
+class _Strict(CheckedOptions):
+    """A section of the run config (option_rules.CheckedOptions)."""
 
 
 class SyntheticInput(_Strict):

@@ -179,10 +179,12 @@ def local_origin(world) -> np.ndarray:
     return np.floor(lowest if far is None else column_min(world[~far]))
 
 
-def corner_without_isolated(xyz, ctx=None):
+def corner_without_isolated(xyz, ctx=None, far=...):
     """(x_min, y_min) of the points without the isolated ones (SMALL_PART), as a grid corner;
-    None when no point is isolated, or all are (the grid then takes the points' own minimum)."""
-    far = isolated_in(xyz, SMALL_PART, ctx) if len(xyz) else None
+    None when no point is isolated, or all are (the grid then takes the points' own minimum).
+    ``far``: isolated_in's answer for these points when the caller has it already."""
+    if far is ...:
+        far = isolated_in(xyz, SMALL_PART, ctx) if len(xyz) else None
     if far is None or far.all():
         return None
     lowest = column_min(np.asarray(xyz)[~far, :2])

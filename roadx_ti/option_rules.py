@@ -11,6 +11,8 @@ from __future__ import annotations
 import types
 import typing
 
+from pydantic import BaseModel, ConfigDict, field_validator
+
 # the most characters of a value an error message repeats (a whole stage list was printed)
 SHOWN_VALUE = 80
 
@@ -73,3 +75,15 @@ def shown(value) -> str:
     """repr(value), cut to SHOWN_VALUE characters for an error message."""
     text = repr(value)
     return text if len(text) <= SHOWN_VALUE else text[:SHOWN_VALUE - 4] + " ..."
+
+
+class CheckedOptions(BaseModel):
+    """Base of the options models (the run config's sections, each stage's options): unknown keys
+    are errors, numbers finite (a field that means something by infinity allows it itself) and
+    neither booleans nor texts (number_or_error)."""
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _numbers_are_numbers(cls, value, info):
+        return number_or_error(cls.model_fields[info.field_name].annotation, value)

@@ -63,6 +63,18 @@ def refuse_folder(output) -> None:
 NAME_ADDITIONS = 80
 
 
+def same_file(a, b) -> bool:
+    """Whether paths ``a`` and ``b`` name one file: the same resolved path, or (both existing) the
+    same file through a link."""
+    a, b = Path(a), Path(b)
+    if a.resolve() == b.resolve():
+        return True
+    if a.exists() and b.exists():
+        with contextlib.suppress(OSError):
+            return os.path.samefile(a, b)
+    return False
+
+
 def check_output_path(output, inputs: Iterable = ()) -> Path:
     """Refuse an output that is one of the inputs (same resolved path or same file through a
     link), or whose folder is missing or not writable. Returns the output as a Path."""
@@ -70,15 +82,8 @@ def check_output_path(output, inputs: Iterable = ()) -> Path:
     refuse_folder(out)
     resolved = out.resolve()
     for given in inputs:
-        if given is None or str(given) == "":
-            continue
-        src = Path(given)
-        same = resolved == src.resolve()
-        if not same and out.exists() and src.exists():
-            with contextlib.suppress(OSError):
-                same = os.path.samefile(out, src)
-        if same:
-            raise fail(out, f"refusing to write over the input file {src}; choose another output path")
+        if given is not None and str(given) != "" and same_file(out, given):
+            raise fail(out, f"refusing to write over the input file {given}; choose another output path")
     folder = resolved.parent
     if not folder.is_dir():
         raise fail(out, f"output folder {folder} does not exist")

@@ -378,15 +378,22 @@ def template_source(sources):
     return sources[0]
 
 
+def fits_records(low: float, high: float, scale: float, offset: float) -> bool:
+    """Whether coordinates from ``low`` to ``high`` are 32-bit integer records at ``scale`` and
+    ``offset`` (laspy's rescaling clips the others: every point of a file 300 km off sat on one x)."""
+    steps = ((low - offset) / scale, (high - offset) / scale)
+    return min(steps) >= -2**31 and max(steps) <= 2**31 - 1
+
+
 def _check_fits(source, template, las, header) -> None:
-    """InputError when the chunk's coordinates fall beyond the int32 records of the output's scales
-    and offsets (laspy's rescaling clips them: every point of a file 300 km off sat on one x)."""
-    if not len(las.points):
+    """InputError when the chunk's coordinates fall beyond the records of the output's scales and
+    offsets (fits_records); a chunk on the output's own grid is copied as it is and always fits."""
+    if not len(las.points) or (np.array_equal(las.header.scales, header.scales)
+                               and np.array_equal(las.header.offsets, header.offsets)):
         return
     for axis, name in enumerate("xyz"):
         values = np.asarray(las[name], np.float64)
-        steps = (np.array([values.min(), values.max()]) - header.offsets[axis]) / header.scales[axis]
-        if steps.min() < -2**31 or steps.max() > 2**31 - 1:
+        if not fits_records(values.min(), values.max(), header.scales[axis], header.offsets[axis]):
             raise InputError(f"{source}: its {name} coordinates ({values.min():.3f} .. {values.max():.3f}) lie beyond "
                              f"what a LAS file with {Path(template).name}'s scale {header.scales[axis]:g} and offset "
                              f"{header.offsets[axis]:g} can hold (32-bit integers); use output.mode per-file, or "
@@ -433,7 +440,7 @@ def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_
                         written += len(las.points)
                 if on_file is not None:
                     on_file(i, seen)
-            evlrs = first.header.evlrs if writer is not None else None
+            evlrs = first.header.evlrs
             if evlrs and writer.header.version.minor >= 4:
                 # the first file's extended VLRs (a WKT CRS, PDAL's metadata, waveform descriptions)
                 # after the points, as LasData.write puts them; laspy's writer leaves them out

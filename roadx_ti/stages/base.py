@@ -23,10 +23,10 @@ from dataclasses import dataclass, field
 from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import ConfigDict, Field
 
 from roadx_ti.cloud import Cloud
-from roadx_ti.option_rules import number_or_error
+from roadx_ti.option_rules import CheckedOptions
 
 # ASPRS classes written by the pipelines
 # an option that is a length or size (> 0) or 'auto' (estimated from the survey)
@@ -42,15 +42,9 @@ CLASS_BUILDING = 6
 CLASS_ROAD = 11
 
 
-class StageOptions(BaseModel):
-    """Base of every stage's options: unknown keys are errors, values are validated on build:
-    numbers are finite and neither booleans nor texts (roadx_ti.option_rules)."""
-    model_config = ConfigDict(extra="forbid", validate_assignment=True, allow_inf_nan=False)
-
-    @field_validator("*", mode="before")
-    @classmethod
-    def _numbers_are_numbers(cls, value, info):
-        return number_or_error(cls.model_fields[info.field_name].annotation, value)
+class StageOptions(CheckedOptions):
+    """Base of every stage's options (option_rules.CheckedOptions), validated on assignment too."""
+    model_config = ConfigDict(validate_assignment=True)
 
 
 @dataclass

@@ -682,13 +682,15 @@ class RoofFilter(Stage):
             raise ValueError("roof_filter needs roof_growing before it (point_data 'roof_segment')")
         segment = np.asarray(ctx.point_data["roof_segment"], np.int32)
         count = int(segment.max()) + 1 if len(segment) and segment.max() >= 0 else 0
+        # isolated points (strays far off): out of the density, and the cell grids' corner without them
+        far = isolated_in(cloud.xyz, SMALL_PART, ctx) if cloud.n else None
+        corner = corner_without_isolated(cloud.xyz, far=far)
         if o.density is not None:
             density, density_source = float(o.density), "option"
         elif ctx.facts.get("point_density"):
             density, density_source = float(ctx.facts["point_density"]), "facts"
         else:
             # isolated points (strays far off, roadx_ti.isolation) add occupied cells but no roof
-            far = isolated_in(cloud.xyz, SMALL_PART, ctx)
             kept_xy = cloud.xyz[:, :2] if far is None else cloud.xyz[~far, :2]
             density, density_source = occupied_density(kept_xy, o.density_cell), "non_ground"
         min_points = density * o.min_roof_area
@@ -785,7 +787,7 @@ class RoofFilter(Stage):
         edges = None
         core = np.where(roof, segment, -1).astype(np.int32)   # the kept roofs before edge growth
         if o.edge_growth and o.edge_rounds and roof.any():
-            segment, roof, edges = self._grow_edges(cloud, ctx, segment, roof, height)
+            segment, roof, edges = self._grow_edges(cloud, ctx, segment, roof, height, corner)
         attached = 0
         if o.attach_footprint and roof.any():
             from roadx_ti.kernels.seeds import INSIDE_ONLY, NEAR_SURFACE_ONLY, attach_to_footprints
@@ -818,7 +820,7 @@ class RoofFilter(Stage):
                 surface_tol=o.surface_tol, near_tol=o.superstructure_height))
             if o.over_roof_reach > 0:
                 hovering = over_roofs(cloud.xyz, core, grown, cell, o.superstructure_height, o.over_roof_reach,
-                                      origin=corner_without_isolated(cloud.xyz, ctx))
+                                      origin=corner)
                 grown = np.where(hovering, -1, grown)
             grown = np.where(roof, segment, grown)
             attached = int(np.count_nonzero(grown >= 0) - np.count_nonzero(roof))
@@ -865,10 +867,11 @@ class RoofFilter(Stage):
         wall = cell if o.wall_reach == "cell" else float(o.wall_reach)
         return cell, wall
 
-    def _grow_edges(self, cloud: Cloud, ctx: StageContext, segment, roof, height):
+    def _grow_edges(self, cloud: Cloud, ctx: StageContext, segment, roof, height, corner):
         """Edge completion of the kept roofs (kernels.seeds.grow_roof_edges) with its distances
         from the measured point spacing and height noise: (segment, roof, info); None for info
-        when roof_seeds' kNN graph, normals and curvature are not there."""
+        when roof_seeds' kNN graph, normals and curvature are not there. ``corner``: the covered
+        test's grid corner (isolation.corner_without_isolated)."""
         from roadx_ti.kernels.seeds import grow_roof_edges, required_planar_neighbours
 
         o = self.options
@@ -911,8 +914,7 @@ class RoofFilter(Stage):
             from roadx_ti.kernels.grid_min import overtopped
 
             cell = self.footprint_cell_and_wall_reach(ctx)[0]
-            covered = np.asarray(overtopped(cloud.xyz, cell, max(o.covered_clearance, cell),
-                                            origin=corner_without_isolated(cloud.xyz, ctx))) != 0
+            covered = np.asarray(overtopped(cloud.xyz, cell, max(o.covered_clearance, cell), origin=corner)) != 0
             grown, info["covered_points"] = covered_completion(
                 cloud.xyz, knn, np.where(roof, segment, -1), grown, eligible & covered, float(tol), float(noise),
                 required_planar_neighbours(o.edge_support, int(np.shape(knn)[1])))

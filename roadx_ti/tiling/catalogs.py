@@ -130,6 +130,7 @@ def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> No
     scales and offsets: the others' points are rounded to it)."""
     from roadx_ti import io
     from roadx_ti.io.crs import of_header
+    from roadx_ti.io.las_write import fits_records
 
     import laspy
 
@@ -184,8 +185,7 @@ def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> No
         for f in las:
             lows, highs = (f.bounds[0], f.bounds[1], f.z_range[0]), (f.bounds[2], f.bounds[3], f.z_range[1])
             for axis, (low, high) in enumerate(zip(lows, highs)):
-                steps = ((low - offsets[axis]) / scales[axis], (high - offsets[axis]) / scales[axis])
-                if f.count and (min(steps) < -2**31 or max(steps) > 2**31 - 1):
+                if f.count and not fits_records(low, high, scales[axis], offsets[axis]):
                     raise io.InputError(
                         f"{f.path}: its {'xyz'[axis]} coordinates ({low:.3f} .. {high:.3f}) lie beyond what the "
                         f"merged output, with {Path(first_path).name}'s scale {scales[axis]:g} and offset "
@@ -193,7 +193,6 @@ def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> No
                         "files one offset near their points (e.g. pdal translate)")
         differ = [f.path for f in las if f.count and not _on_grid(grids[f.path], grids[first_path])]
         if differ:
-            scales, offsets = grids[first_path]
             log.warning("%d input file(s) have other scales or offsets than %s (e.g. %s: scales %s, offsets %s); "
                         "the merged output takes %s's (scales %s, offsets %s) and their coordinates are rounded "
                         "to it (output.mode per-file keeps each file's)", len(differ), first_path, differ[0],
