@@ -1368,6 +1368,26 @@ def case_buffer_of_an_untiled_run(d):
                 warning="--buffer is the tiles' buffer; this run is untiled", check=lambda c: _las_result(c, src, classes={1, 2}))
 
 
+
+def case_extra_dimension_named_x(d):
+    """An extra dimension named 'x' (lowercase; laspy's scaled X): exit 1 naming it before any work
+    (the whole pipeline ran, then 'unexpected error: IndexError' at the write)."""
+    import laspy
+
+    src = d / "in" / "xdim.las"
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.scales, header.offsets = np.full(3, 0.01), np.zeros(3)
+    header.add_extra_dims([laspy.ExtraBytesParams(name="zzzzzzzz", type=np.float64)])
+    las = laspy.LasData(header)
+    xyz = bumpy_ground(500)
+    las.x, las.y, las.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    las.write(src)
+    data = bytearray(src.read_bytes())
+    at = data.find(b"zzzzzzzz")
+    data[at:at + 32] = b"x".ljust(32, b"\0")
+    src.write_bytes(bytes(data))
+    return _tiny(d, src, message="its extra dimension 'x' has the name of the standard dimension 'X'")
+
 CASES = {name[len("case_"):]: fn for name, fn in sorted(globals().items()) if name.startswith("case_")}
 
 

@@ -818,3 +818,117 @@ def test_an_ascii_ply_holding_more_rows_than_declared_says_so(tmp_path, caplog):
     with caplog.at_level("WARNING", logger="roadx_ti"):
         assert io.read(tmp_path / "m.ply").n == 40
     assert "holds 50 data lines, its header declares 40" in caplog.text
+
+
+# ------------------------------------------------------------------ waveform records, odd names
+
+def _with_waveform_record(path, version: str, point_format: int, payload: bytes = bytes(range(256)) * 4) -> bytes:
+    """A LAS file with internal waveform data (global encoding bit 1): LAS 1.4 in an EVLR, LAS
+    1.3 appended after the points, the header's pointer (byte 227) at its 60-byte header. Returns
+    the record (header and payload) as written."""
+    import struct
+
+    world = np.column_stack([np.arange(40.0), np.arange(40.0) % 7, np.zeros(40)]) + [500.0, 800.0, 10.0]
+    header = laspy.LasHeader(point_format=point_format, version=version)
+    header.scales, header.offsets = np.full(3, 0.01), np.zeros(3)
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = world[:, 0], world[:, 1], world[:, 2]
+    las.wavepacket_index = np.ones(40, np.uint8)
+    las.wavepacket_offset = np.arange(40, dtype=np.uint64) * 16
+    las.wavepacket_size = np.full(40, 16, np.uint32)
+    record = struct.pack("<H16sHQ32s", 0, b"LASF_Spec", 65535, len(payload), b"waveform data") + payload
+    if version == "1.4":
+        las.evlrs = laspy.vlrs.vlrlist.VLRList([laspy.VLR("LASF_Spec", 65535, "waveform data", payload)])
+    las.write(path)
+    data = bytearray(Path(path).read_bytes())
+    if version == "1.4":
+        start = struct.unpack_from("<Q", data, 235)[0]
+    else:
+        start = len(data)
+        data += record
+    data[6:8] = struct.pack("<H", struct.unpack_from("<H", data, 6)[0] | 2)
+    data[227:235] = struct.pack("<Q", start)
+    Path(path).write_bytes(bytes(data))
+    return record
+
+
+def _waveform_record_of(path) -> bytes | None:
+    import struct
+
+    data = Path(path).read_bytes()
+    if not struct.unpack_from("<H", data, 6)[0] & 2:
+        return None
+    start = struct.unpack_from("<Q", data, 227)[0]
+    return data[start:start + 60 + struct.unpack_from("<Q", data, start + 20)[0]]
+
+
+@pytest.mark.parametrize("version,point_format", [("1.4", 9), ("1.3", 4)])
+@pytest.mark.parametrize("suffix", [".las", ".laz"])
+@pytest.mark.parametrize("keep_records", [True, False])
+def test_waveform_record_kept_and_pointed_at(tmp_path, version, point_format, suffix, keep_records):
+    """The header's pointer to the waveform data packet record points at the output's own record:
+    it was copied from the input and pointed into the widened point records (1.4), and LAS 1.3's
+    record after the points was left behind while the header still claimed it."""
+    src = tmp_path / "in.las"
+    record = _with_waveform_record(src, version, point_format)
+    before = sha256(src)
+    cloud = io.read(src, keep_records=keep_records)
+    out = tmp_path / f"out{suffix}"
+    io.write(out, cloud, classification=np.full(40, 2, np.uint8), extra_dims={"roadx_label": np.ones(40, np.uint8)})
+    assert _waveform_record_of(out) == record
+    got = laspy.read(out)
+    np.testing.assert_array_equal(np.asarray(got.wavepacket_offset), np.arange(40) * 16)
+    assert sha256(src) == before
+
+
+def test_waveform_records_of_several_files_merged_are_said_dropped(tmp_path, caplog):
+    """Two files with waveform records of their own merged into one: the output claims none (each
+    file's wave packet offsets point into its own record), with a warning."""
+    from roadx_ti.io.las_write import write_las_stream
+
+    files = [tmp_path / "a.las", tmp_path / "b.las"]
+    for f in files:
+        _with_waveform_record(f, "1.4", 9)
+    out = tmp_path / "merged.las"
+    labels = lambda i, chunk: (None, {}, None)       # noqa: E731
+    with caplog.at_level("WARNING"):
+        write_las_stream(out, files, labels, empty=(None, {}, None))
+    assert _waveform_record_of(out) is None and len(laspy.read(out).points) == 80
+    assert "which one file cannot hold" in caplog.text
+
+
+@pytest.mark.parametrize("name,point_format,standard", [("x", 3, "X"), ("Intensity", 7, "intensity"),
+                                                         ("classification", 1, "classification"),
+                                                         ("bit_fields", 1, "bit_fields")])
+def test_extra_dimension_named_as_a_standard_one_refused(tmp_path, name, point_format, standard):
+    """An extra dimension whose name is a standard one in another case ('x' is laspy's scaled X)
+    or a legacy bit field's: one line at the read (an 'x' ran the whole pipeline and failed at the
+    write with 'unexpected error: IndexError'; 'intensity' read as 'truncated or corrupt')."""
+    src = tmp_path / "odd.las"
+    header = laspy.LasHeader(point_format=point_format, version="1.4")
+    header.add_extra_dims([laspy.ExtraBytesParams(name="zzzzzzzz", type=np.float64)])
+    las = laspy.LasData(header)
+    las.x = las.y = las.z = np.arange(10.0)
+    las.write(src)
+    data = bytearray(src.read_bytes())
+    at = data.find(b"zzzzzzzz")
+    data[at:at + 32] = name.encode().ljust(32, b"\0")
+    src.write_bytes(bytes(data))
+    msg = one_line_error(src, io.read, src)
+    assert f"extra dimension {name!r} has the name of the standard dimension {standard!r}" in msg
+
+
+def test_input_dimension_of_a_result_name_replaced_with_a_warning(tmp_path, caplog):
+    """An input that already holds a 'segment_id' (another tool's uint16, or an earlier run's) has
+    it replaced by the run's: said in a warning naming its type (it went silently)."""
+    src = tmp_path / "seg.las"
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.add_extra_dims([laspy.ExtraBytesParams(name="segment_id", type=np.uint16)])
+    las = laspy.LasData(header)
+    las.x = las.y = las.z = np.arange(10.0)
+    las.segment_id = np.arange(10, dtype=np.uint16)
+    las.write(src)
+    with caplog.at_level("WARNING"):
+        io.write(tmp_path / "out.las", io.read(src), extra_dims={"segment_id": np.full(10, -1, np.int32)})
+    assert "extra dimension 'segment_id' (uint16) is replaced by this run's (int32)" in caplog.text
+    assert np.asarray(laspy.read(tmp_path / "out.las").segment_id).tolist() == [-1] * 10

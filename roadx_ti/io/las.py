@@ -49,6 +49,7 @@ LAS_ERRORS = (Exception,)
 POINT_SIZES = {0: 20, 1: 28, 2: 26, 3: 34, 4: 57, 5: 63, 6: 30, 7: 36, 8: 38, 9: 59, 10: 67}
 HEADER_SIZES = {0: 227, 1: 227, 2: 227, 3: 235, 4: 375}
 VLR_HEADER, EVLR_HEADER = 54, 60
+EXTRA_BYTES_STRUCT = 192    # bytes per dimension of the Extra Bytes VLR
 
 
 _WARNED: set = set()      # (kind, file) of the warnings said already in this process
@@ -105,8 +106,13 @@ def check_structure(path) -> None:
         f.seek(header_size)
         block = f.read(offset - header_size)
         pos = 0
+        extra_names = []
         for i in range(vlrs):
             length = struct.unpack_from("<H", block, pos + 20)[0]
+            if block[pos + 2:pos + 18].rstrip(b"\0") == b"LASF_Spec" and struct.unpack_from("<H", block, pos + 18)[0] == 4:
+                body = block[pos + VLR_HEADER:pos + VLR_HEADER + length]
+                extra_names += [body[j + 4:j + 36].split(b"\0")[0] for j in range(0, len(body) - EXTRA_BYTES_STRUCT + 1,
+                                                                                   EXTRA_BYTES_STRUCT)]
             pos += VLR_HEADER + length
             if pos > len(block):
                 raise fail(path, f"invalid VLR {i + 1} of {vlrs}: its {length} bytes run past the start of "
@@ -125,6 +131,7 @@ def check_structure(path) -> None:
     compressed = bool(fmt_byte & 0xC0)
     if point_format not in POINT_SIZES:
         raise fail(path, f"invalid header: point format {point_format} is not a LAS point format (0 to 10)")
+    _check_extra_names(path, point_format, extra_names)
     if record < POINT_SIZES[point_format]:
         raise fail(path, f"invalid header: point records of {record} bytes, point format {point_format} "
                          f"needs {POINT_SIZES[point_format]}")
@@ -156,6 +163,26 @@ def check_structure(path) -> None:
     if minor >= 4 and evlr_count and not (offset <= evlr_start and evlr_start + evlr_count * EVLR_HEADER <= size):
         raise fail(path, f"invalid header: {evlr_count} EVLRs from byte {evlr_start} do not fit in the file "
                          f"of {size} bytes")
+
+
+def _check_extra_names(path, point_format: int, names: list) -> None:
+    """Extra Bytes names that a reader cannot tell from a standard dimension (any case: 'x' is
+    laspy's scaled X, 'classification' a legacy format's bit field) or from another extra
+    dimension: one line naming it (an 'x' ran the whole pipeline and failed at the write)."""
+    standard = {n.lower(): n for n in ("x", "y", "z", *laspy.PointFormat(point_format).dimension_names,
+                                       *laspy.PointFormat(point_format).dtype().names)}
+    seen = set()
+    for raw in names:
+        name = raw.decode("ascii", "replace")
+        if not name:
+            continue        # laspy names an unnamed one itself
+        if name.lower() in standard:
+            raise fail(path, f"its extra dimension {name!r} has the name of the standard dimension "
+                             f"{standard[name.lower()]!r} (names compare without case): readers cannot tell them "
+                             "apart; rename it (e.g. in laspy, or pdal translate with filters.ferry)")
+        if name in seen:
+            raise fail(path, f"two of its extra dimensions are named {name!r}; rename one (e.g. in laspy)")
+        seen.add(name)
 
 
 def _las_error(path, exc: Exception) -> InputError:

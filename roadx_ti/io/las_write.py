@@ -79,6 +79,12 @@ def _set_extra_dims(path, header, array: np.ndarray, extra: dict) -> laspy.Scale
             raise fail(path, f"extra dimension {name!r} clashes with the standard LAS dimension of "
                              "that name; pass the classification through classification=")
         old = existing.get(name)
+        if old is not None:
+            # an earlier run's labels, or another tool's dimension of that name: said, not silent
+            was = f"{array.dtype[name].base}{list(array.dtype[name].shape) or ''}" + (
+                " scaled" if old.scales is not None or old.offsets is not None else "")
+            warn_once(("replaced", str(path), name), "writing %s: the input's extra dimension %r (%s) is replaced by this "
+                      "run's (%s)", path, name, was, values.dtype)
         if old is not None and (array.dtype[name].base != values.dtype or array.dtype[name].shape
                                 or old.scales is not None or old.offsets is not None):
             replace.append(name)
@@ -302,6 +308,8 @@ def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subse
     with atomic_output(path) as tmp:
         with open(tmp, "wb") as f:
             las.write(f, do_compress=compress)
+        if cloud.las is not None and cloud.source:
+            keep_waveform_record(path, tmp, [cloud.source])
         check_written(path, tmp, cloud.source)
 
 
@@ -348,6 +356,99 @@ def _write_from_records_file(path, cloud: Cloud, classification, extra_dims, ind
 
     empty = (None if classes is None else classes[:0], {k: v[:0] for k, v in extra.items()}, None)
     write_las_stream(path, [cloud.records_file], labels, empty=empty, on_file=read_whole)
+
+
+WAVEFORM_INTERNAL = 0x2     # global encoding bit 1: the waveform data packets are inside the file
+WAVEFORM_POINTER = 227      # header byte of the start of the waveform data packet record (LAS 1.3+)
+
+
+def keep_waveform_record(path, tmp, sources) -> None:
+    """The written ``tmp``'s pointer to its waveform data packet record, which the header copied
+    from the input pointed into the input's layout (inside the output's point records once the
+    result dimensions widened them): LAS 1.4 points to the output's own waveform EVLR; LAS 1.3
+    (laspy leaves the record behind) gets the input's record copied after its points. Several
+    inputs with packets of their own cannot share one record: the bit and pointer are cleared,
+    with a warning (the points' wave packet fields are kept as read)."""
+    import struct
+
+    with open(tmp, "rb") as f:
+        head = f.read(375)
+    if len(head) < 235 or head[25] < 3:
+        return
+    encoding = struct.unpack_from("<H", head, 6)[0]
+    pointer = struct.unpack_from("<Q", head, WAVEFORM_POINTER)[0]
+    if not encoding & WAVEFORM_INTERNAL and pointer == 0:
+        return
+    where = 0
+    if not encoding & WAVEFORM_INTERNAL:
+        pass                         # external or no packets: a stale pointer is cleared below
+    elif len({str(s) for s in sources}) > 1:
+        warn_once(("waveform", str(path)), "writing %s: its %d inputs each point into a waveform record of their own, "
+                  "which one file cannot hold; the output says it has none (the wave packet fields are kept as read)",
+                  path, len(sources))
+    elif head[25] >= 4:
+        where = _waveform_evlr(tmp, head)
+    else:
+        where = _append_waveform_record(tmp, sources[0])
+    if not where and encoding & WAVEFORM_INTERNAL and len({str(s) for s in sources}) == 1:
+        warn_once(("waveform", str(path)), "writing %s: the input's waveform data packet record could not be found; "
+                  "the output says it has none (the wave packet fields are kept as read)", path)
+    with open(tmp, "r+b") as f:
+        f.seek(6)
+        f.write(struct.pack("<H", encoding if where else encoding & ~WAVEFORM_INTERNAL))
+        f.seek(WAVEFORM_POINTER)
+        f.write(struct.pack("<Q", where))
+
+
+def _waveform_evlr(tmp, head: bytes) -> int:
+    """Byte offset of the waveform data packet EVLR (LASF_Spec, 65535) of a written LAS 1.4 file, or 0."""
+    import os
+    import struct
+
+    start, count = struct.unpack_from("<QI", head, 235)
+    size = os.path.getsize(tmp)
+    with open(tmp, "rb") as f:
+        at = start
+        for _ in range(count):
+            f.seek(at)
+            raw = f.read(60)
+            if len(raw) < 60:
+                return 0
+            user, record, length = raw[2:18].rstrip(b"\0"), *struct.unpack_from("<HQ", raw, 18)
+            if user == b"LASF_Spec" and record == 65535:
+                return at
+            at += 60 + length
+            if at > size:
+                return 0
+    return 0
+
+
+def _append_waveform_record(tmp, source) -> int:
+    """The LAS 1.3 ``source``'s waveform data packet record appended to ``tmp``: where it starts, or 0."""
+    import os
+    import struct
+
+    try:
+        size = os.path.getsize(source)
+        with open(source, "rb") as f:
+            head = f.read(235)
+            if len(head) < 235 or not struct.unpack_from("<H", head, 6)[0] & WAVEFORM_INTERNAL:
+                return 0
+            start = struct.unpack_from("<Q", head, WAVEFORM_POINTER)[0]
+            if not 0 < start <= size - 60:
+                return 0
+            f.seek(start)
+            record = f.read(60)
+            length = struct.unpack_from("<Q", record, 20)[0]
+            if start + 60 + length > size:
+                return 0
+            record += f.read(length)
+    except OSError:
+        return 0
+    with open(tmp, "ab") as out:
+        where = out.tell()
+        out.write(record)
+    return where
 
 
 def check_written(path, tmp, source="") -> None:
@@ -448,5 +549,6 @@ def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_
         finally:
             if writer is not None:
                 writer.close()
+        keep_waveform_record(path, tmp, sources)
         check_written(path, tmp)
     return written
