@@ -46,6 +46,27 @@ def _import_taichi():
         f"{'taichi-forge' if 'taichi_forge' in candidates else ''}")
 
 
+def _ensure_home() -> None:
+    """Taichi's import aborts the process (a C++ assertion, SIGABRT) when HOME is unset, as in some
+    service and container environments: the user's home from the password database, else the
+    temporary folder (where Taichi then keeps its cache)."""
+    if os.environ.get("HOME"):
+        return
+    home = ""
+    try:
+        import pwd
+
+        home = pwd.getpwuid(os.getuid()).pw_dir
+    except (ImportError, KeyError, OSError):
+        pass
+    if not home or not os.path.isdir(home):
+        import tempfile
+
+        home = tempfile.gettempdir()
+    os.environ["HOME"] = home
+
+
+_ensure_home()
 ti = _import_taichi()
 DISTRIBUTION: str = ti.__name__
 VERSION: tuple = tuple(ti.__version__)

@@ -80,6 +80,13 @@ def init(backend: str = "auto", *, threads: int | None = None, debug: bool = Fal
         log.info("Taichi already initialised by the host: using arch %s", arch)
         return arch
     candidates = _auto_candidates() if backend == "auto" else [backend]
+    # Taichi's TI_ARCH overrides the arch ti.init is asked for (TI_ARCH=vulkan ran a --backend cpu
+    # run on lavapipe, other labels; an unknown name aborted the process): the backend asked for
+    # here decides, and the variable is said to be ignored
+    environment_arch = os.environ.pop("TI_ARCH", None)
+    if environment_arch is not None:
+        log.warning("TI_ARCH=%s in the environment is ignored: the backend is chosen by --backend or the "
+                    "config's backend (here %s)", environment_arch[:40], backend)
     # fast_math off: LLVM may then not contract or reorder float expressions, so taichi 1.7.4
     # (LLVM 15) and taichi-forge (LLVM 20) compute the same bits (curvature, plane distances)
     kwargs = dict(offline_cache=offline_cache, debug=debug, log_level=ti.WARN, fast_math=fast_math,

@@ -40,6 +40,16 @@ class _OneLineParser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"roadx_ti: {where}{message} (see {self.prog} --help)\n")
 
 
+class _Once(argparse.Action):
+    """An option that takes one value: given twice, a usage error (argparse kept the last silently:
+    '--output a.laz --output b.laz' wrote b.laz alone)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if getattr(namespace, self.dest, None) is not None:
+            parser.error(f"{option_string} given twice; give it once")
+        setattr(namespace, self.dest, values)
+
+
 def _parser() -> argparse.ArgumentParser:
     p = _OneLineParser(prog="roadx_ti", description=__doc__.split("\n")[0])
     p.add_argument("--version", action="version", version=f"roadx_ti {__version__}")
@@ -47,9 +57,9 @@ def _parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("run", help="run a pipeline from a YAML config")
     r.add_argument("config", help="YAML config (see configs/)")
-    r.add_argument("--input", nargs="+", metavar="PATH", help="input point cloud(s), folder(s) or quoted "
-                   "wildcard patterns ('tiles/*.laz'), replacing the config's")
-    r.add_argument("--output", metavar="PATH", help="output point cloud, replacing the config's")
+    r.add_argument("--input", nargs="+", action="extend", metavar="PATH", help="input point cloud(s), folder(s) "
+                   "or quoted wildcard patterns ('tiles/*.laz'), replacing the config's (repeatable)")
+    r.add_argument("--output", action=_Once, metavar="PATH", help="output point cloud, replacing the config's")
     r.add_argument("--backend", choices=["auto", "cpu", "vulkan", "cuda", "metal"])
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. --set stages.sor.k=30 (repeatable)")
@@ -140,6 +150,11 @@ def _setup_logging(quiet: bool) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    for stream in (sys.stdout, sys.stderr):
+        # a name the terminal's encoding cannot show (PYTHONIOENCODING=ascii, a non-UTF-8 locale) is
+        # escaped, not an 'unexpected error: UnicodeEncodeError' after the work was done
+        with contextlib.suppress(AttributeError, ValueError):
+            stream.reconfigure(errors="backslashreplace")
     parser = _parser()
     args = parser.parse_args(argv)
     if args.command is None:
@@ -221,10 +236,21 @@ def _left_behind() -> str:
     (a signal held while a run's files were renamed arrives after them: they are the new ones)."""
     from roadx_ti.io.atomic import RENAMED
 
+    _quiet_shutdown()
+
     if not RENAMED:
         return "no partial output was left"
     more = f" and {len(RENAMED) - 1} more" if len(RENAMED) > 1 else ""
     return f"no partial output was left; complete before it: {RENAMED[-1]}{more}"
+
+
+def _quiet_shutdown() -> None:
+    """After a stop, the process's own shutdown says nothing more: a Dask cluster stopped while it
+    started printed tracebacks after our one line (distributed's atexit close of a cluster still in
+    its init state, tornado's log of the cancelled connection)."""
+    for name in ("distributed", "tornado", "asyncio"):
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)
+    sys.unraisablehook = lambda unraisable: None
 
 
 class Terminated(BaseException):
@@ -402,6 +428,10 @@ def _cmd_run(args) -> int:
         cfg.backend = args.backend
     if args.buffer is not None and not cfg.tiled:
         log.warning("--buffer is the tiles' buffer; this run is untiled (give --tile-size to tile it)")
+    if cfg.output.mode == "per-file" and not cfg.tiled and Path(str(cfg.output.path)).suffix.lower() not in io.EXTENSIONS:
+        # (it said "unknown output format '(no extension)'" of the folder it was given)
+        raise UsageError(f"{cfg.output.path}: output.mode per-file writes one file per input of a catalog or tiled "
+                         "run into a folder; this run is one file, untiled: give an output file name (e.g. out.laz)")
     if not cfg.input.paths and cfg.input.synthetic is None:
         raise config.ConfigError("config error: input: give input.paths, input.synthetic or --input PATH")
     cfg.input.paths = _expand_patterns(cfg.input.paths)
@@ -687,7 +717,8 @@ def _matches(pattern: str) -> list[str] | None:
 
     if Path(pattern).exists() or not glob.has_magic(pattern):
         return None
-    return sorted(m for m in glob.glob(pattern) if Path(m).is_file())
+    # '**' any depth of folders, as PDAL's and the shells' globstar take it (it matched one level)
+    return sorted(m for m in glob.glob(pattern, recursive=True) if Path(m).is_file())
 
 
 def _expand_patterns(paths: list[str]) -> list[str]:
@@ -732,6 +763,8 @@ def cmd_eval(args) -> int:
     truth_classes = _classes(args.truth_classes, "--truth-classes")
     pred_classes = _classes(args.pred_classes, "--pred-classes") if args.pred_classes is not None else truth_classes
     for given, flag in ((args.pred, "--pred"), (args.truth, "--truth")):
+        if not Path(given).exists():
+            raise UsageError(f"{flag} {given}: no such file")
         if Path(given).is_dir():
             raise UsageError(f"{flag} {given}: is a folder; eval compares two files point by point")
     pred = io.read(args.pred)
@@ -785,7 +818,9 @@ def cmd_info(args) -> int:
     for given in args.path:
         matches = _matches(given)
         if matches == []:
-            raise io.InputError(f"{given}: no file matches the pattern")
+            raise UsageError(f"{given}: no file matches the pattern")
+        if matches is None and not Path(given).exists():
+            raise UsageError(f"{given}: no such file")
         for path in [given] if matches is None else pattern_files(given, matches):
             files.extend(folder_files(Path(path)) if Path(path).is_dir() else [path])
     infos = [io.info(str(f)) for f in files]
@@ -812,9 +847,16 @@ def cmd_bench(args) -> int:
 
 # ------------------------------------------------------------------------------------- synth
 def cmd_synth(args) -> int:
+    with _removing_made_folders():      # the output's folders, made for a scene that was refused
+        return _cmd_synth(args)
+
+
+def _cmd_synth(args) -> int:
     from roadx_ti import io, memory, synthetic
 
     out = Path(args.output)
+    if isinstance(args.points, int) and args.points < synthetic.MIN_POINTS:
+        raise UsageError(f"--points {args.points}: a synthetic scene has at least {synthetic.MIN_POINTS} points")
     _prepare_output(out, [])
     # a scene is made whole in memory: refuse one that cannot fit before laying it out (1e12
     # for 1e7 would otherwise lay out a city for minutes, then fail)

@@ -186,6 +186,13 @@ class RunConfig(_Strict):
             pipeline = next(p for p, c in PIPELINE_TARGET.items() if c == labels)
             raise ConfigError(f"config error: pipeline = {self.pipeline!r}, but stages[{i}] {name} labels class "
                               f"{labels} ({pipeline}), not {target}; set pipeline: {pipeline}")
+        if labelling and labelling[-1][0] < len(out) - 1:
+            # the labels are made on the points that reach the labelling stage: a filter after it
+            # removed labelled points (road_regions first, then the filters: exit 0, no road at all)
+            i, name, labels = labelling[-1]
+            after = ", ".join(f"stages[{j}] {n}" for j, (n, _) in enumerate(out) if j > i)
+            raise ConfigError(f"config error: {after} after stages[{i}] {name}, which labels class {labels}: the "
+                              f"last stage labels the points that reach it; put {name} last")
         return out
 
     @field_validator("memory_limit", mode="before")
@@ -365,6 +372,12 @@ def apply_override(raw: dict, assignment: str) -> None:
 
 
 def _stage_options(stages: list, part: str, key: str) -> tuple[str, dict]:
+    named = [i for i, entry in enumerate(stages) if isinstance(entry, dict) and part in entry]
+    if not part.isdigit() and len(named) > 1:
+        # two stages of one name: which one is meant is the user's to say (the first changed silently)
+        rest = key.split(part, 1)[1]
+        raise ConfigError(f"--set {key}: this config has {len(named)} {part} stages (stages "
+                          f"{', '.join(map(str, named))}); name one by its position, e.g. stages.{named[0]}.{part}{rest}")
     for i, entry in enumerate(stages):
         if isinstance(entry, dict) and (part in entry or part == str(i)):
             (name,) = entry

@@ -181,6 +181,14 @@ def test_command_line_mistakes_are_one_line(tmp_path, args, said):
      "would be a scene 1,000.0 km across"),                                        # laid out for minutes
     (["run", str(REPO / "configs" / "ground.yaml"), "--input", "x.laz", "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"],
      "config error: executor: give workers (a local cluster) or scheduler"),       # the whole config was printed
+    (["synth", "--kind", "uav-road", "--points", "100", "-o", "made/deeper/x.laz"],
+     "--points 100: a synthetic scene has at least 1000 points"),                  # 'n_points', left made/deeper
+    (["synth", "--kind", "uav-road", "--points", "5000", "--density", "1e-9", "-o", "made/x.laz"],
+     "would be a scene 2,236.1 km across"),                                        # left the folder made
+    (["run", str(REPO / "configs" / "ground.yaml"), "--input", "x.laz", "--output", "a.laz", "--output", "b.laz"],
+     "--output given twice; give it once"),                                        # wrote b.laz alone
+    (["info", "nope.laz"], "nope.laz: no such file"),                              # exit 1, run's exit 2
+    (["eval", "--pred", "nope.laz", "--truth", "nope.laz", "--truth-classes", "11"], "--pred nope.laz: no such file"),
 ])
 def test_mistakes_in_the_other_commands_are_one_line_before_any_work(tmp_path, args, said):
     """The bench, accuracy and synth options (and rules over several config keys) checked before any
@@ -207,3 +215,75 @@ def test_eval_of_the_same_points_in_another_order_is_refused(tmp_path, road_scen
     proc = run_cli("eval", "--pred", str(road_scene), "--truth", str(tmp_path / "shuffled.laz"), "--truth-classes", "11")
     from cli_helpers import error_line
     assert "both files must hold the same points in the same order" in error_line(proc, 1)
+
+
+def test_repeated_input_takes_every_path():
+    """--input given twice takes the paths of both (argparse kept the last: a file dropped unsaid)."""
+    from roadx_ti.cli import _parser
+
+    args = _parser().parse_args(["run", "c.yaml", "--input", "a.laz", "--input", "b.laz", "c.laz"])
+    assert args.input == ["a.laz", "b.laz", "c.laz"]
+
+
+def _tiny_las(path):
+    from cli_helpers import bumpy_ground, write_las
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return write_las(path, bumpy_ground(400))
+
+
+def test_double_star_pattern_reaches_every_depth(tmp_path):
+    """'**' in a pattern matches any depth of folders, none included (it matched one level: half of
+    the files, the run going on silently)."""
+    for name in ("mix/t1.las", "mix/sub/t2.las", "mix/sub/deeper/t3.las"):
+        _tiny_las(tmp_path / name)
+    proc = run_cli("info", "mix/**/*.las", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(info["path"] for info in json.loads(proc.stdout)) == \
+        ["mix/sub/deeper/t3.las", "mix/sub/t2.las", "mix/t1.las"]
+
+
+def test_per_file_output_of_one_untiled_file_is_a_usage_error(tmp_path):
+    from cli_helpers import error_line
+    src = _tiny_las(tmp_path / "one.las")
+    proc = run_cli("run", str(REPO / "configs" / "ground.yaml"), "--input", str(src), "--output",
+                   str(tmp_path / "pf"), "--output-mode", "per-file", "--backend", "cpu")
+    assert "per-file writes one file per input of a catalog or tiled run" in error_line(proc, 2)
+    assert not (tmp_path / "pf").exists()
+
+
+def test_environment_oddities(tmp_path):
+    """HOME unset (Taichi's import aborted every command, even --version, with SIGABRT), TI_ARCH
+    (it overrode --backend cpu: lavapipe's labels; an unknown name aborted), an ASCII-only output
+    encoding (info --text of a non-ASCII name: 'unexpected error: UnicodeEncodeError')."""
+    import os
+    src = _tiny_las(tmp_path / "n\u00e4me.las")
+    env = {k: v for k, v in os.environ.items() if k not in ("HOME", "TI_ARCH")}
+    proc = subprocess.run([sys.executable, "-m", "roadx_ti", "--version"], capture_output=True, text=True, env=env)
+    assert proc.returncode == 0 and "roadx_ti" in proc.stdout, proc.stderr
+    env = dict(os.environ, TI_ARCH="bogus")
+    proc = subprocess.run([sys.executable, "-m", "roadx_ti", "run", str(REPO / "configs" / "ground.yaml"), "--input",
+                           str(src), "--output", str(tmp_path / "g.laz"), "--backend", "cpu"],
+                          capture_output=True, text=True, env=env, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "TI_ARCH=bogus in the environment is ignored" in proc.stderr
+    assert json.loads((tmp_path / "g.summary.json").read_text())["backend"] == "cpu"
+    env = dict(os.environ, PYTHONIOENCODING="ascii")
+    env.pop("TI_ARCH", None)
+    proc = subprocess.run([sys.executable, "-m", "roadx_ti", "info", str(src), "--text"], capture_output=True,
+                          text=True, env=env, timeout=120)
+    assert proc.returncode == 0 and "n\\xe4me.las" in proc.stdout, proc.stderr
+
+
+def test_a_stopped_run_shuts_down_without_tracebacks():
+    """After the one line of a stop, the shutdown prints nothing more: a Dask cluster stopped while it
+    started printed tracebacks from its atexit close (an exception in an atexit callback) and
+    tornado's log."""
+    code = ("import atexit, logging, sys\n"
+            "from roadx_ti import cli\n"
+            "logging.basicConfig()\n"
+            "def close_clusters():\n    raise AssertionError('Status.init')\n"
+            "atexit.register(close_clusters)\n"
+            "print(cli._left_behind(), file=sys.stderr)\n"
+            "logging.getLogger('tornado.application').error('cannot access free variable')\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.stderr.strip() == "no partial output was left", proc.stderr

@@ -73,6 +73,12 @@ def test_memory_limit_in_bytes_as_a_number():
     (GOOD, ["memory_limit=0"], "must be more than 0 bytes"),
     (GOOD, ["memory_limit=lots"], "not a memory size"),
     (GOOD, ["evaluate.truth_classes=[999]"], "classes are integers 0..255"),
+    # two stages of one name: the first changed silently
+    ({"pipeline": "road", "stages": [{"sor": {"k": 20}}, {"sor": {"k": 10}}, {"road_regions": {}}]},
+     ["stages.sor.k=7"], "has 2 sor stages (stages 0, 1); name one by its position, e.g. stages.0.sor.k"),
+    # a filter after the labelling stage removed labelled points: exit 0 and no road at all
+    ({"pipeline": "road", "stages": [{"road_regions": {}}, {"cloth_smooth": {}}, {"sor": {}}]}, [],
+     "stages[1] cloth_smooth, stages[2] sor after stages[0] road_regions, which labels class 11"),
 ])
 def test_config_errors_are_one_line(mapping, overrides, expected):
     with pytest.raises(config.ConfigError) as info:

@@ -36,7 +36,7 @@ def _kind(path: Path) -> str:
     kind = EXTENSIONS.get(path.suffix.lower())
     if kind is None:
         raise fail(path, f"not a point-cloud file name: unknown extension {path.suffix or '(none)'!r} "
-                         f"(expected {' '.join(EXTENSIONS)})")
+                         f"(expected {' '.join(EXTENSIONS)}; .copc.laz writes COPC)")
     return kind
 
 
