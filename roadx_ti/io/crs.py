@@ -13,13 +13,13 @@ log = logging.getLogger(__name__)
 
 def of_header(header):
     """rasterio CRS of a LAS header, or None when it has no (usable) CRS record."""
+    wkt, codes = crs_records(header)
+    if not wkt and not codes:
+        return None             # before importing rasterio (GDAL, PROJ): 0.2 s of every such run
     import rasterio
     from rasterio.crs import CRS
     from rasterio.errors import CRSError
 
-    wkt, codes = crs_records(header)
-    if not wkt and not codes:
-        return None
     try:
         # inside an Env, GDAL's own message ('ERROR 1: missing [') goes to Python logging, quiet
         # here, instead of straight to stderr beside the one warning below
