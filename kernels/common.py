@@ -84,6 +84,25 @@ def kernel_array(a, dtype=None):
     return arr
 
 
+def index_array(indices, points=None):
+    """Neighbour indices (n, k) as a kernel argument (int32, as kernel_array). Numpy indices are
+    checked first, since the kernels read the points they name unchecked (an index past the
+    cloud read other memory or ended the process with a segmentation fault): -1 (no neighbour)
+    or 0 .. points - 1, and one row per point (``points``: the count of the cloud they index,
+    default their own rows)."""
+    if not is_ndarray(indices):
+        a = np.asarray(indices)
+        if a.ndim != 2 or a.dtype.kind not in "iu":
+            raise ValueError(f"neighbour indices must be integers of shape (n, k), got {a.dtype} {a.shape}")
+        n = len(a) if points is None else int(points)
+        if len(a) != n:
+            raise ValueError(f"neighbour indices have {len(a)} rows for {n} points")
+        if a.size and (int(a.min()) < -1 or int(a.max()) >= n):
+            bad = int(a.min()) if int(a.min()) < -1 else int(a.max())
+            raise ValueError(f"neighbour index {bad} is outside the cloud of {n} points (-1 for none, else 0..{n - 1})")
+    return kernel_array(indices, np.int32)
+
+
 def output_array(dtype, shape, reference):
     """A zeroed result array for a wrapper whose input ``reference`` is numpy or an ndarray:
     numpy, which the kernels write in place, when ``reference`` is numpy and the kernels run in
@@ -104,7 +123,7 @@ def like_input(result, reference):
 
 
 def length(a) -> int:
-    return int(a.shape[0])
+    return int(a.shape[0]) if hasattr(a, "shape") else len(a)     # a list of points too
 
 
 @ti.func

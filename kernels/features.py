@@ -10,7 +10,7 @@ neighbourhoods, where closed-form cubic solutions lose the small eigenvalue.
 import numpy as np
 from .taichi_compat import ti
 
-from .common import kernel_array, length, like_input, output_array
+from .common import index_array, kernel_array, length, like_input, output_array
 
 _JACOBI_SWEEPS = 8
 
@@ -194,7 +194,7 @@ def _check_rows(nbr, n):
 def _per_point(kernel, xyz, knn_indices, *args):
     """float32 (n,) from ``kernel(points, rows, *args, out)`` over the points and their kNN rows."""
     pts = kernel_array(xyz, np.float32)
-    nbr = kernel_array(knn_indices, np.int32)
+    nbr = index_array(knn_indices, length(xyz))
     n = length(pts)
     _check_rows(nbr, n)
     out = output_array(ti.f32, (n,), xyz)
@@ -228,7 +228,7 @@ def covariance_features(xyz, knn_indices) -> dict:
     'max_distance' (n,) distance to the farthest of the k neighbours;
     'extent' (n, 3) per-axis max - min of the neighbourhood coordinates."""
     pts = kernel_array(xyz, np.float32)
-    nbr = kernel_array(knn_indices, np.int32)
+    nbr = index_array(knn_indices, length(xyz))
     n = length(pts)
     _check_rows(nbr, n)
     shapes = {"normal": (n, 3), "eigenvalues": (n, 3), "curvature": (n,), "max_distance": (n,),

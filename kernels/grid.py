@@ -453,7 +453,7 @@ def mask_to_indices(mask):
 def voxel_downsample(xyz, voxel_size: float):
     """Indices (ascending, int32) of one real point per occupied voxel of edge ``voxel_size``:
     the point nearest the voxel's centroid, ties to the lower index. Voxels are
-    ``floor((p - bbox_min) / voxel_size)``. Returns numpy for numpy input, an ndarray otherwise."""
+    ``floor((p - bbox_min) / voxel_size)``. Returns numpy for numpy input, an ndarray otherwise (numpy when no point is given)."""
     grid = build_grid_into(xyz, voxel_size, 8.0, private=True)
     keep = scratch("voxel.keep", ti.i32, (max(grid.n, 1),))
     keep.fill(0)
@@ -462,5 +462,7 @@ def voxel_downsample(xyz, voxel_size: float):
         ox, oy, oz = grid.origin
         _voxel_offsets(grid.sorted_xyz, grid.sorted_cell, ox, oy, oz, grid.cell_size, offset)
         _voxel_pick(offset, grid.sorted_cell, grid.order, keep)
-    idx = mask_to_indices(keep) if grid.n else ndarray(ti.i32, (0,))
+    if not grid.n:
+        return np.zeros(0, np.int32)     # numpy either way: Taichi has no empty ndarray
+    idx = mask_to_indices(keep)
     return idx if is_ndarray(xyz) else idx.to_numpy()

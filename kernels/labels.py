@@ -19,7 +19,7 @@ then unites regions on the device with the same union-find over an edge list.
 import numpy as np
 from .taichi_compat import ti
 
-from .common import as_ndarray, is_ndarray, kernel_array, like_input, ndarray, output_array, to_numpy
+from .common import index_array, as_ndarray, is_ndarray, kernel_array, like_input, ndarray, output_array, to_numpy
 
 # Verification rounds never exceed a handful; this bound only guards against a logic error.
 _MAX_ROUNDS = 64
@@ -156,7 +156,7 @@ def _components(neighbors, edge_ok=None, active=None):
         if active is not None:
             out[to_numpy(active) == 0] = -1
         return out, 0
-    nbr = kernel_array(neighbors, "int32")
+    nbr = index_array(neighbors)
     parent = output_array(ti.i32, (n,), neighbors)
     act = kernel_array(active, "uint8") if active is not None else ndarray(ti.u8, (1,))
     _init_parent(act, int(active is not None), parent)
@@ -197,7 +197,7 @@ def color_edges(neighbors, rgb, threshold):
     two points is below ``threshold`` (PCL RegionGrowingRGB's point colour threshold)."""
     if int(neighbors.shape[0]) == 0 or int(neighbors.shape[1]) == 0:
         return np.zeros(tuple(neighbors.shape), np.uint8)
-    nbr = kernel_array(neighbors, "int32")
+    nbr = index_array(neighbors)
     out = output_array(ti.u8, tuple(nbr.shape), neighbors)
     t = np.float32(threshold)
     _color_edges(nbr, kernel_array(rgb, "float32"), float(t * t), out)

@@ -1054,7 +1054,7 @@ def radius_search(xyz, radius: float, *, max_neighbors: int = None, grid: Grid =
     """All points within ``radius`` (distance <= radius) of every point, the point itself
     excluded, as CSR: (offsets int32 (n+1,), indices int32 (m,)); row i is
     indices[offsets[i]:offsets[i+1]], sorted by (distance, index). ``max_neighbors`` keeps
-    only the nearest that many of each row."""
+    only the nearest that many of each row. The indices are numpy when there is no pair at all."""
     radius = float(radius)
     if not radius >= 0:
         raise ValueError(f"radius must be >= 0, got {radius}")
@@ -1074,7 +1074,8 @@ def radius_search(xyz, radius: float, *, max_neighbors: int = None, grid: Grid =
     if n:
         _radius_scan(*args, count, dummy_i, dummy_i, dummy_f, False)
     offsets, total = _csr_offsets(count)
-    idx = ndarray(ti.i32, (total,))
+    # no pair at all (a small radius, one point): an empty numpy index list (Taichi has no empty ndarray)
+    idx = ndarray(ti.i32, (total,)) if total else np.zeros(0, np.int32)
     if total:
         dist = ndarray(ti.f32, (total,))
         _radius_scan(*args, count, offsets, idx, dist, True)
@@ -1082,7 +1083,7 @@ def radius_search(xyz, radius: float, *, max_neighbors: int = None, grid: Grid =
         clipped = ndarray(ti.i32, (n + 1,))
         _clip_counts(offsets, int(max_neighbors), clipped)
         new_offsets, new_total = _csr_offsets(clipped)
-        new_idx = ndarray(ti.i32, (new_total,))
+        new_idx = ndarray(ti.i32, (new_total,)) if new_total else np.zeros(0, np.int32)
         if new_total:
             _copy_rows(offsets, idx, new_offsets, new_idx)
         offsets, idx = new_offsets, new_idx

@@ -25,7 +25,7 @@ rounds, one region at a time, for tests.
 
 import numpy as np
 
-from .common import host_memory_backend, is_ndarray, kernel_array, length, like_input, output_array, to_numpy
+from .common import index_array, host_memory_backend, is_ndarray, kernel_array, length, like_input, output_array, to_numpy
 from .taichi_compat import ti
 
 MAX_ROW = 33          # a point and at most 32 neighbours
@@ -154,7 +154,7 @@ def neighbourhood_median(values, neighbors):
     ``neighbors`` int32 (n, k <= 32), -1 = none). numpy or ndarray, as ``values``."""
     vals = kernel_array(values, np.float32)
     n = length(vals)
-    nbr = kernel_array(neighbors, np.int32)
+    nbr = index_array(neighbors, n)
     _check_rows(nbr, n)
     out = output_array(ti.f32, tuple(vals.shape), values)
     if n:
@@ -169,7 +169,7 @@ def mode_heights(xyz, neighbors, gradient, width, steps: int = 3):
     noise): one value, or one per point (float32 (n,): noise that varies across a survey)."""
     pts = kernel_array(xyz, np.float32)
     n = length(pts)
-    nbr = kernel_array(neighbors, np.int32)
+    nbr = index_array(neighbors, n)
     _check_rows(nbr, n)
     out = output_array(ti.f32, (n,), xyz)
     if n:
@@ -185,7 +185,7 @@ def boundary_vote(xyz, neighbors, gradient, label, step: float):
     Region labels follow region boundaries; this puts the boundary on the step itself."""
     pts = kernel_array(xyz, np.float32)
     n = length(pts)
-    nbr = kernel_array(neighbors, np.int32)
+    nbr = index_array(neighbors, n)
     _check_rows(nbr, n)
     out = output_array(ti.u8, (n,), xyz)
     if n:

@@ -62,7 +62,7 @@ import math
 import numpy as np
 from .taichi_compat import ti
 
-from .common import (INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, is_ndarray, kernel_array, length,
+from .common import (index_array, INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, is_ndarray, kernel_array, length,
                      like_input, ndarray, output_array, to_numpy, zeros)
 
 FOOTPRINT_CELLS_PER_POINT = 4
@@ -122,7 +122,7 @@ def seed_constraints(knn_indices, curvature, max_distance, extent, *, curvature_
     max_distance (n,) in m, extent (n, 3) in m. A threshold of None switches its constraint off
     (its mask is all ones): curvature_max (with plane_coef in [0, 1]), r_max (m), alpha.
     """
-    knn = kernel_array(knn_indices, "int32")
+    knn = index_array(knn_indices)
     curv = kernel_array(curvature, "float32")
     n = length(curv)
     k = int(knn.shape[1]) if len(knn.shape) == 2 else 0
@@ -170,7 +170,7 @@ def roof_growth_edges(knn_indices, normal, *, angle_max_deg: float, active=None,
     vegetation (n,) uint8. The colour rule is on only when rgb, vegetation and color_max are all
     given. active (n,) uint8, default all.
     """
-    knn = kernel_array(knn_indices, "int32")
+    knn = index_array(knn_indices)
     n, k = int(knn.shape[0]), int(knn.shape[1])
     use_color = rgb is not None and vegetation is not None and color_max is not None
     act = kernel_array(np.ones(n, np.uint8) if active is None else active, "uint8")
@@ -268,7 +268,7 @@ def grow_roof_segments(knn_indices, edge_ok, seed, *, curvature=None, expand_cur
 
     if int(knn_indices.shape[0]) == 0:
         return np.zeros(0, np.int32)
-    knn = kernel_array(knn_indices, "int32")
+    knn = index_array(knn_indices)
     n = int(knn.shape[0])
     seed_nd = kernel_array(seed, "uint8")
     act = kernel_array(np.ones(n, np.uint8) if active is None else active, "uint8")
@@ -405,7 +405,7 @@ def grow_roof_edges(xyz, knn_indices, segment, normal, curvature, eligible, *, r
     then lower point index). Each round reads only the previous one's arrays: order independent
     up to exact ties.
     """
-    knn = kernel_array(knn_indices, "int32")
+    knn = index_array(knn_indices)
     n = int(knn.shape[0])
     label = np.ascontiguousarray(to_numpy(segment), np.int32).copy()
     if n == 0 or int(knn.shape[1]) == 0 or rounds <= 0 or not (label >= 0).any():

@@ -8,7 +8,7 @@ result is bit-identical from run to run (no atomics).
 import numpy as np
 from .taichi_compat import ti
 
-from .common import as_ndarray, is_ndarray, kernel_array, like_input, ndarray, to_numpy
+from .common import index_array, as_ndarray, is_ndarray, kernel_array, like_input, ndarray, to_numpy
 
 
 @ti.kernel
@@ -44,7 +44,7 @@ def neighbor_mean(values, neighbors, passes: int = 1):
     else:
         a.copy_from(values)
     if int(neighbors.shape[1]) > 0 and passes > 0:
-        nbr = kernel_array(neighbors, "int32")
+        nbr = index_array(neighbors, n)
         b = ndarray(ti.f32, tuple(a.shape))
         for _ in range(passes):
             _neighbor_mean(nbr, a, b)

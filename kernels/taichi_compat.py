@@ -88,9 +88,24 @@ def runtime_program():
     return ti.lang.impl.get_runtime()
 
 
+class RuntimeSettingsError(RuntimeError):
+    """No Taichi runtime, or one whose settings the kernels cannot run under."""
+
+
 def current_arch():
-    """The arch of the running runtime (a ``ti`` arch object)."""
-    return ti.lang.impl.current_cfg().arch
+    """The arch of the running runtime (a ``ti`` arch object). RuntimeSettingsError when there is
+    none, or when its default types are not the f32 / i32 the kernels are written for: a host's
+    ``ti.init(default_fp=ti.f64)`` aborted the process in LLVM (an invalid cast), default_ip i64
+    failed Taichi's type check inside the first kernel."""
+    if not is_initialized():
+        raise RuntimeSettingsError("Taichi is not initialised: call roadx_ti.backend.init() (or ti.init) before "
+                                   "the kernels")
+    cfg = ti.lang.impl.current_cfg()
+    if cfg.default_fp != ti.f32 or cfg.default_ip != ti.i32:
+        raise RuntimeSettingsError(f"the Taichi runtime was started with default_fp={cfg.default_fp} and "
+                                   f"default_ip={cfg.default_ip}; roadx_ti's kernels need ti.f32 and ti.i32 "
+                                   "(the defaults of ti.init)")
+    return cfg.arch
 
 
 def cpu_threads() -> int:

@@ -414,6 +414,8 @@ _UniqueKeyLoader.add_implicit_resolver("tag:yaml.org,2002:float",
 
 def load(path: str | Path, overrides: list[str] = ()) -> RunConfig:
     """Read, override and validate a YAML config; every mistake raises ConfigError (one line)."""
+    if isinstance(overrides, (str, bytes)):     # load(path, "k=v") went through it letter by letter
+        raise TypeError(f"overrides must be a list of 'KEY=VALUE' strings, e.g. [{overrides!r}]")
     path = Path(path)
     if path.is_dir():
         raise ConfigError(f"config file {path} is a folder; give the YAML file (e.g. configs/road_uav.yaml)")

@@ -81,6 +81,12 @@ def run(cloud: Cloud, stages, *, ctx: StageContext | None = None, truth: np.ndar
 
     The stages see the points in canonical order (roadx_ti.ordering), so the result does not
     depend on the input's point order; the arrays returned are in the input's order."""
+    from roadx_ti.stages.base import Stage
+
+    if not isinstance(cloud, Cloud):
+        raise TypeError(f"cloud must be a roadx_ti.cloud.Cloud (e.g. roadx_ti.io.read), got {type(cloud).__name__}")
+    if stages is None or isinstance(stages, (str, bytes)) or not all(isinstance(s, Stage) for s in stages):
+        raise TypeError("stages must be a list of stage objects, e.g. pipelines.build_stages(config.stage_list())")
     order = canonical_order(cloud)
     if order is None:
         return _run(cloud, None, stages, ctx, truth, default_class, progress, target_class)

@@ -51,3 +51,64 @@ def test_host_program_owns_runtime_and_ndarrays(arch):
                           timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "EMBEDDED-OK" in proc.stdout
+
+
+def test_host_runtime_settings_and_misuse_are_clear_errors():
+    """A host's runtime with default_fp f64 (it aborted the process in LLVM) or none at all
+    ('NoneType' object has no attribute 'config'), neighbour indices past the cloud (a
+    segmentation fault), empty inputs of radius_search / voxel_downsample (Taichi's '(0,) is not
+    a valid shape'), and API misuse: each a clear Python exception, the process alive."""
+    program = textwrap.dedent("""
+        import sys
+        import numpy as np
+        from roadx_ti.kernels.taichi_compat import RuntimeSettingsError, ti
+        from roadx_ti.kernels.outliers import sor_keep
+        xyz = np.random.default_rng(0).random((500, 3)).astype(np.float32) * 10
+        try:
+            sor_keep(xyz, 8, 2.0)
+            raise SystemExit("no error without a runtime")
+        except RuntimeSettingsError as exc:
+            assert "not initialised" in str(exc), exc
+        ti.init(arch=ti.cpu, default_fp=ti.f64, offline_cache=False)
+        try:
+            sor_keep(xyz, 8, 2.0)
+            raise SystemExit("no error under default_fp f64")
+        except RuntimeSettingsError as exc:
+            assert "default_fp=f64" in str(exc), exc
+        ti.reset()
+        ti.init(arch=ti.cpu, offline_cache=False)
+        from roadx_ti.kernels.features import covariance_features
+        from roadx_ti.kernels.grid import voxel_downsample
+        from roadx_ti.kernels.neighbors import knn, radius_search
+        for bad, said in ((np.full((500, 8), 10**8, np.int32), "outside the cloud of 500 points"),
+                          (np.zeros((10, 8), np.int32), "10 rows for 500 points")):
+            try:
+                covariance_features(xyz, bad)
+                raise SystemExit("bad indices taken")
+            except ValueError as exc:
+                assert said in str(exc), exc
+        offsets, idx = radius_search(np.float32([[0, 0, 0], [10, 0, 0]]), 1.0)
+        assert list(offsets) == [0, 0, 0] and len(idx) == 0
+        offsets, idx = radius_search(np.zeros((0, 3), np.float32), 1.0)
+        assert list(offsets) == [0] and len(idx) == 0
+        assert len(voxel_downsample(np.zeros((0, 3), np.float32), 0.5)) == 0
+        assert knn(xyz[:20].tolist(), 4)[0].shape == (20, 4)          # a list of points
+        from roadx_ti import config, io, pipelines
+        from roadx_ti.cloud import Cloud
+        for call, said in ((lambda: pipelines.run(Cloud.from_world(xyz.astype(float)), None), "list of stage objects"),
+                           (lambda: pipelines.run(None, []), "roadx_ti.cloud.Cloud"),
+                           (lambda: io.write("w.ply", None), "roadx_ti.cloud.Cloud"),
+                           (lambda: io.write("w.ply", Cloud.from_world(xyz.astype(float)),
+                                             classification=np.full(500, 2.5)), "whole class numbers"),
+                           (lambda: config.load(sys.argv[1], "seed=1"), "list of 'KEY=VALUE' strings")):
+            try:
+                call()
+                raise SystemExit(f"accepted: {said}")
+            except (TypeError, ValueError) as exc:
+                assert said in str(exc), exc
+        print("ok")
+    """)
+    from tests.conftest import REPO
+    proc = subprocess.run([sys.executable, "-c", program, str(REPO / "configs" / "ground.yaml")], capture_output=True,
+                          text=True, timeout=300, cwd="/tmp")
+    assert proc.returncode == 0 and proc.stdout.strip().endswith("ok"), proc.stderr[-2000:]

@@ -77,5 +77,5 @@ def test_several_files_a_folder_and_a_pattern(tmp_path):
         assert [(d["path"].rsplit("/", 1)[-1], d["point_count"]) for d in listed] == [("a.las", 200), ("b.laz", 300)]
     assert info(str(tmp_path / "b.*"))["point_count"] == 300           # one file: the object itself
     proc = run_cli("info", str(tmp_path / "*.ply"))
-    assert proc.returncode == 1
+    assert proc.returncode == 2          # a usage mistake, as run says it
     assert proc.stderr.strip().splitlines() == [f"roadx_ti: {tmp_path / '*.ply'}: no file matches the pattern"]

@@ -121,6 +121,13 @@ def write(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=No
     same-named ones) or extra columns/properties. subset: bool mask or indices of the points to write
     (classification and extra_dims are given for all points of the cloud).
     A cloud read from LAS is written from its point records: every attribute is kept bit-exact."""
+    if not isinstance(cloud, Cloud):
+        raise TypeError(f"cloud must be a roadx_ti.cloud.Cloud, got {type(cloud).__name__}")
+    if classification is not None:
+        classes = np.asarray(classification)
+        if classes.dtype.kind == "f" and classes.size and not np.array_equal(classes, np.round(classes)):
+            # 2.5 was written as class 2 to PLY, PCD, NPZ and text
+            raise ValueError(f"classification must hold whole class numbers, e.g. not {classes[classes != np.round(classes)][0]:g}")
     path = Path(path)
     kind = _kind(path)
     inputs = [cloud.source] if cloud.source and Path(cloud.source).exists() else []

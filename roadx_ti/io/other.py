@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import re
 from pathlib import Path
 
@@ -173,6 +174,18 @@ PLY_NAMES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort", "i4": "
              "f4": "float", "f8": "double"}
 
 
+def _unique_names(path, what: str, names) -> None:
+    """InputError for a name given twice, or for two of x y z in different cases (the second
+    column of a name hid the first, or a coordinate was taken from the other column)."""
+    seen = {}
+    for name in names:
+        key = name.lower() if name.lower() in ("x", "y", "z") else name
+        if key in seen:
+            raise fail(path, f"{what} {name!r} is given twice" + (f" (as {seen[key]!r} too)" if seen[key] != name else "")
+                       + "; rename one")
+        seen[key] = name
+
+
 def _ply_header(path, f):
     """(format, [(element, count, [(prop, type) or (prop, 'list')])], header bytes, origin or None)."""
     if f.readline().strip() != b"ply":
@@ -219,6 +232,7 @@ def read_ply(path, origin=None) -> Cloud:
     _, count, props = elements[names.index("vertex")]
     if any(p[1] == "list" for p in props):
         raise fail(path, "PLY vertex data with list properties is not supported")
+    _unique_names(path, "PLY property", [p for p, _ in props])
     # X Y Z in capitals (some exporters): the coordinates all the same
     axes = {p.lower(): p for p, _ in props if p.lower() in ("x", "y", "z")}
     if len(axes) != 3:
@@ -232,7 +246,10 @@ def read_ply(path, origin=None) -> Cloud:
                                **_ascii_after(path, start, skip))
         except ValueError as exc:
             raise fail(path, f"corrupt ASCII PLY data ({' '.join(str(exc).split())})") from None
-        if len(table) != count or (count and table.shape[1] != len(props)):
+        if count and len(table) and table.shape[1] != len(props):
+            raise fail(path, f"corrupt PLY file: its vertex rows hold {table.shape[1]} values, the header declares "
+                             f"{len(props)} properties")
+        if len(table) != count:
             raise fail(path, f"truncated or corrupt PLY file: {count} vertices declared, {len(table)} read")
         _warn_undeclared_rows(path, start, sum(e[1] for e in elements))
         data = {p: table[:, k].astype(t) for k, (p, t) in enumerate(props)}
@@ -356,33 +373,125 @@ PCD_DATA = ("ascii", "binary", "binary_compressed")
 PCD_NORMALS = ("normal_x", "normal_y", "normal_z")
 
 
+PCD_TYPES = {"F": (4, 8), "I": (1, 2, 4, 8), "U": (1, 2, 4, 8)}     # what Open3D reads (TYPE: SIZEs)
+PCD_STORABLE = "iuf"            # numpy kinds a PCD field holds (bool as uint8, float16 as float32)
+
+
 def _pcd_count(path) -> int:
-    """The point count of a PCD header, after the checks Open3D's reader lacks (a partial normal
-    field set crashes the process in Open3D 0.19)."""
-    count, fields, data = None, None, None
+    """The point count of a PCD header, after the checks Open3D's reader lacks: a repeated field
+    aborted the process (glibc's heap check), a partial normal field set crashes Open3D 0.19,
+    sizes and types it cannot read, multi-value fields it cuts to their first value, and ASCII
+    data of fewer rows than POINTS, whose missing rows it filled from uninitialised memory."""
+    header, fields, sizes, types, counts, count, data = 0, None, None, None, None, None, None
     with open(path, "rb") as f:
         for _ in range(64):
-            words = f.readline().decode("ascii", "replace").split()
+            line = f.readline()
+            header += len(line)
+            words = line.decode("ascii", "replace").split()
             if not words or words[0].startswith("#"):
                 continue
-            if words[0] == "POINTS":
+            key = words[0].upper()
+            if key == "POINTS":
                 count = int(words[1])
-            if words[0] == "FIELDS":
+            elif key == "FIELDS":
                 fields = words[1:]
-            if words[0] == "DATA":
-                data = words[1] if len(words) > 1 else ""
+            elif key == "SIZE":
+                sizes = [int(w) for w in words[1:]]
+            elif key == "TYPE":
+                types = [w.upper() for w in words[1:]]
+            elif key == "COUNT":
+                counts = [int(w) for w in words[1:]]
+            elif key == "DATA":
+                data = words[1].lower() if len(words) > 1 else ""
                 break
     if count is None:
         raise fail(path, "not a PCD file (no POINTS line in the header)")
+    if count < 0:
+        raise fail(path, f"corrupt PCD header (POINTS {count})")
     if fields is not None and not {"x", "y", "z"} <= set(fields):
         raise fail(path, f"PCD file without x y z fields (FIELDS {' '.join(fields)})")
-    normals = [name for name in PCD_NORMALS if name in (fields or ())]
+    fields = fields or []
+    repeated = sorted({name for name in fields if fields.count(name) > 1})
+    if repeated:
+        raise fail(path, f"PCD field {repeated[0]!r} is named twice (FIELDS {' '.join(fields)[:200]}); rename one")
+    for key, values in (("SIZE", sizes), ("TYPE", types), ("COUNT", counts)):
+        if values is not None and len(values) != len(fields):
+            raise fail(path, f"corrupt PCD header: {len(values)} {key} values for {len(fields)} FIELDS")
+    for i, name in enumerate(fields):
+        size, kind = (sizes[i] if sizes else 4), (types[i] if types else "F")
+        if size not in PCD_TYPES.get(kind, ()):
+            raise fail(path, f"PCD field {name!r} has TYPE {kind} SIZE {size}, which is not read (floats of 4 or 8 "
+                             "bytes, integers of 1, 2, 4 or 8); convert it (e.g. pcl_convert_pcd_ascii_binary, Open3D)")
+        if counts is not None and counts[i] != 1:
+            raise fail(path, f"PCD field {name!r} has COUNT {counts[i]}: only fields of one value are read (histograms, "
+                             "descriptors: drop or split them)")
+    normals = [name for name in PCD_NORMALS if name in fields]
     if normals and len(normals) < 3:
         raise fail(path, f"PCD file with {' '.join(normals)} but not all of {' '.join(PCD_NORMALS)}: "
                          "Open3D reads normals as a set of three; rename the field or add the others")
-    if data is not None and data.lower() not in PCD_DATA:
+    if data is not None and data not in PCD_DATA:
         raise fail(path, f"PCD DATA {data!r} is none of {', '.join(PCD_DATA)}")
+    if data == "ascii":
+        _check_pcd_ascii(path, header, count, len(fields))
+    elif data == "binary" and sizes is not None:
+        need = header + count * sum(sizes)
+        if os.path.getsize(path) < need:
+            have = (os.path.getsize(path) - header) // max(sum(sizes), 1)
+            raise fail(path, f"truncated PCD file: {count} points declared, the file holds {max(have, 0)}")
     return count
+
+
+def _check_pcd_ascii(path, start: int, count: int, width: int) -> None:
+    """ASCII PCD data: ``count`` rows of ``width`` numbers each (Open3D read missing rows as
+    uninitialised memory and words as 0)."""
+    with open(path, "rb") as f:
+        f.seek(start)
+        rows = [r for r in f.read().split(b"\n") if r.strip()]
+    if len(rows) != count:
+        raise fail(path, f"truncated or corrupt PCD file: {count} points declared, {len(rows)} data rows")
+    if not rows:
+        return
+    words = [len(r.split()) for r in rows]
+    bad = next((i for i, w in enumerate(words) if w != width), None)
+    if bad is not None:
+        raise fail(path, f"corrupt PCD file: data row {bad + 1} holds {words[bad]} values, FIELDS names {width}")
+    try:
+        np.array(b" ".join(rows).split(), dtype=np.float64)
+    except ValueError:
+        word = next(w for r in rows for w in r.split() if not _is_number(w))
+        raise fail(path, f"corrupt PCD file: {word[:40].decode('ascii', 'replace')!r} in the data is not a number") from None
+
+
+def _is_number(word: bytes) -> bool:
+    try:
+        float(word)
+        return True
+    except ValueError:
+        return False
+
+
+def _open3d_message(exc: Exception) -> str:
+    """Open3D's error text without its terminal colours and C++ function and source location."""
+    text = re.sub(r"\x1b\[[0-9;]*m", "", " ".join(str(exc).split()))
+    text = re.sub(r"\[Open3D (Error|WARNING)\]\s*(\(.*?\)\s*)?(\S+:\d+:\s*)?", "", text)
+    return text.strip()[:200]
+
+
+def pcd_fields(path, cols: dict) -> dict:
+    """The columns as PCD fields (InputError for a type PCD cannot hold); float16 as float32, bool as uint8."""
+    out = {}
+    for name, a in cols.items():
+        a = np.asarray(a)
+        if a.dtype.kind == "b":
+            a = a.astype(np.uint8)
+        elif a.dtype == np.float16:
+            a = a.astype(np.float32)
+        if a.dtype.kind not in PCD_STORABLE or a.dtype.fields is not None:
+            raise fail(path, f"column {name!r} of type {a.dtype} cannot be a PCD field (numbers only)")
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
+            raise fail(path, f"column name {name!r} cannot be a PCD field name")
+        out[name] = a
+    return out
 
 
 @contextlib.contextmanager
@@ -403,7 +512,7 @@ def read_pcd(path, origin=None) -> Cloud:
         try:
             pc = o3d.t.io.read_point_cloud(str(path))
         except RuntimeError as exc:
-            raise fail(path, f"corrupt PCD file ({' '.join(str(exc).split())[:200]})") from None
+            raise fail(path, f"corrupt PCD file ({_open3d_message(exc)})") from None
     arrays = {k: pc.point[k].numpy() for k in pc.point}
     world = arrays.pop("positions", np.zeros((0, 3)))
     if len(world) != count:
@@ -425,6 +534,7 @@ def read_pcd(path, origin=None) -> Cloud:
 
 def write_pcd(path, cloud: Cloud, classification=None, extra_dims=None, subset=None) -> None:
     world, cols = writable_columns(cloud, classification, extra_dims, subset)
+    cols = pcd_fields(path, cols)
     with _quiet_open3d() as o3d:
         pc = o3d.t.geometry.PointCloud()
         pc.point.positions = o3d.core.Tensor(np.ascontiguousarray(world))
@@ -455,6 +565,9 @@ def read_npz(path, origin=None) -> Cloud:
             arrays = {k: z[k] for k in z.files}
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
         raise fail(path, f"not a readable NPZ file ({' '.join(str(exc).split())})") from None
+    for key, a in arrays.items():
+        if not isinstance(a, np.ndarray):       # a member that is not .npy (numpy hands its raw bytes)
+            raise fail(path, f"NPZ member {key!r} is not a numpy array (.npy); it is not read")
     xyz = arrays.pop("xyz", None)
     if xyz is None or xyz.ndim != 2 or xyz.shape[1] != 3 or xyz.dtype.kind not in "iuf":
         raise fail(path, "NPZ file has no numeric 'xyz' array of shape (n, 3)")
@@ -481,7 +594,15 @@ def read_npz(path, origin=None) -> Cloud:
         if bad is not None and bad.any():
             raise fail(path, f"NPZ array {key!r} must hold whole numbers 0-{top} (e.g. "
                              f"{np.asarray(a).reshape(-1)[np.flatnonzero(bad)[0]]:g})")
-    attributes = {k: v for k, v in arrays.items() if v.ndim == 1 and len(v) == n}
+    attributes = {}
+    for key, a in arrays.items():
+        if a.ndim == 1 and len(a) == n:
+            attributes[key] = a
+        elif a.ndim == 2 and len(a) == n:      # (n, m): m columns, as the PCD reader splits them
+            attributes.update({f"{key}_{k}": a[:, k] for k in range(a.shape[1])})
+        else:
+            log.warning("%s: NPZ array %r of shape %s is not one value or row per point; it is not read", path,
+                        key, a.shape)
     bad = int(np.count_nonzero(~np.isfinite(world).all(axis=1))) if n else 0
     if bad:
         raise fail(path, f"{bad} of {n} points have NaN or infinite coordinates")
@@ -603,7 +724,11 @@ def read_text(path, origin=None) -> Cloud:
     if table.size == 0:
         table = np.zeros((0, len(names) if names else 3))
     width = table.shape[1]
+    if names is not None and len(names) != width:
+        log.warning("%s: its header names %d columns but the rows hold %d; the header is ignored", path,
+                    len(names), width)
     if names is not None and len(names) == width:
+        _unique_names(path, "text column", names)
         names = [n.lower() if n.lower() in ("x", "y", "z") else n for n in names]
         if not {"x", "y", "z"} <= set(names):
             raise fail(path, f"text header names no x y z columns: {' '.join(names)}")
@@ -649,4 +774,4 @@ def text_columns(path, cols: dict) -> None:
 READERS = {"ply": read_ply, "pcd": read_pcd, "npz": read_npz, "text": read_text}
 WRITERS = {"ply": write_ply, "pcd": write_pcd, "npz": write_npz, "text": write_text}
 # each writer's own test of its columns (InputError), beyond writable_columns: io.check_writable runs it
-COLUMN_CHECKS = {"ply": ply_properties, "text": text_columns}
+COLUMN_CHECKS = {"ply": ply_properties, "pcd": pcd_fields, "text": text_columns}
