@@ -118,7 +118,9 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     b = idx.reshape(-1)[idx.reshape(-1) >= 0]
     rgb = cloud.rgb8()
     if rgb is not None and np.ptp(rgb) > 0:
-        grey = rgb[pick].mean(axis=1)
+        varying = np.flatnonzero(rgb.max(axis=0) != rgb.min(axis=0))
+        # one channel alone varying is a grey written into it (road_regions reads it so)
+        grey = rgb[pick, varying[0]] if len(varying) == 1 else rgb[pick].mean(axis=1)
         out["colour_noise"] = round(float(MAD_TO_SIGMA * np.median(np.abs(grey[b] - grey[a])) / np.sqrt(2.0)), 3)
     log.info("survey estimates: %s", out)
     return out

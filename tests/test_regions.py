@@ -382,3 +382,55 @@ def test_road_regions_road_is_the_majority_of_its_segmentations():
     split = ~np.all(np.array(members) == members[0], axis=0)
     assert split.any() and info["ensemble_split_points"] == int(split.sum())   # the members differ
     assert np.array_equal(road((1.3, 0.7, 1.0))[0], voted)                       # order of the scales
+
+
+def test_road_regions_reads_one_varying_colour_channel_as_grey():
+    """Colour of which only red varies (a grey or single-band image written into red, green and
+    blue zero): read as that grey, with a warning (as RGB every point was saturated red and no
+    region became road: 0 road points, exit 0)."""
+    import logging
+
+    from roadx_ti import config, pipelines, synthetic
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.road_regions import colour_channels
+    from tests.conftest import REPO
+
+    scene = synthetic.generate("uav-road", 40_000, seed=3)
+    red_only = scene.rgb.copy()
+    red_only[:, 1:] = 0
+    cloud = Cloud(xyz=scene.xyz, origin=scene.origin, rgb=red_only, color_depth=16)
+    source, grey = colour_channels(cloud)
+    assert source == "red as grey" and np.array_equal(grey[:, 0], grey[:, 2])
+    assert np.array_equal(grey[:, 1], (scene.rgb[:, 0] / 257.0).astype(np.float32))
+    cfg = config.load(REPO / "configs" / "road_uav.yaml")
+    records = []
+    log = logging.getLogger("road_regions_grey_test")
+    log.addHandler(type("Keep", (logging.Handler,), {"emit": lambda self, r: records.append(r)})())
+    truth = scene.classification == 11
+    found = pipelines.run(cloud, pipelines.build_stages(cfg.stage_list()), ctx=StageContext(seed=0, log=log))
+    road = found.classification == 11
+    assert np.count_nonzero(road & truth) > 0.9 * np.count_nonzero(truth)
+    assert any("only the red channel of the colour varies" in r.getMessage() for r in records)
+
+
+def test_colour_mixing_8_and_16_bit_values_is_warned(tmp_path, caplog):
+    """Every second point's colour in 8 bits beside 16-bit colour (a merged delivery) is warned
+    (it cut the road to 5 % of itself, silently); genuine 16-bit colour, dark points included, is not."""
+    import laspy
+
+    from roadx_ti import io
+    from tests.cli_helpers import bumpy_ground, write_las
+
+    rng = np.random.default_rng(0)
+    rgb = rng.integers(20, 240, (2000, 3)) * 257
+    rgb[:40] = 0                                            # black points are no sign of a mix
+    write_las(tmp_path / "deep.las", bumpy_ground(2000), rgb=rgb)
+    rgb[::2] //= 257
+    write_las(tmp_path / "mixed.las", bumpy_ground(2000), rgb=rgb)
+    with caplog.at_level("WARNING"):
+        io.read(tmp_path / "deep.las")
+        assert "8-bit colour values beside 16-bit" not in caplog.text
+        io.read(tmp_path / "mixed.las")
+    assert "50 % of its coloured points have 8-bit colour values beside 16-bit ones" in caplog.text
+    assert laspy.read(tmp_path / "mixed.las").header.point_count == 2000

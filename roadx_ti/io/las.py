@@ -19,7 +19,7 @@ import laspy
 import numpy as np
 
 from ..chunks import over_chunks
-from ..cloud import Cloud, detect_color_depth
+from ..cloud import MIXED_DEPTH_SHARE, Cloud, byte_sized_share, detect_color_depth
 from ..columns import column_abs_nanmax, column_max, column_min
 from .atomic import InputError, fail
 
@@ -463,7 +463,7 @@ def _cloud_of(path, las, hmins, hmaxs, origin, whole: bool, keep_records: bool =
     origin = np.asarray(origin, dtype=np.float64).reshape(3)
     xyz = (world - origin).astype(np.float32)
     del world
-    rgb, depth = _las_rgb(las)
+    rgb, depth = _las_rgb(las, path)
     # copies, not views of the records, when the records are let go
     column = np.array if not keep_records else np.asarray
     return Cloud(xyz=xyz, origin=origin, rgb=rgb, color_depth=depth,
@@ -476,14 +476,24 @@ def _cloud_of(path, las, hmins, hmaxs, origin, whole: bool, keep_records: bool =
                  source=str(path))
 
 
-def _las_rgb(las) -> tuple[np.ndarray | None, int]:
+def _las_rgb(las, path="") -> tuple[np.ndarray | None, int]:
     """RGB when the format has colour and it is not all zero (IGN tiles carry zero colour fields)."""
     if "red" not in las.point_format.dimension_names:
         return None, 0
     rgb = np.column_stack([np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)]).astype(np.uint16)
     if not rgb.any():
         return None, 0
+    warn_mixed_depth(path, rgb)
     return rgb, detect_color_depth(rgb)
+
+
+def warn_mixed_depth(path, rgb: np.ndarray) -> None:
+    """A warning when ``path``'s colour mixes 8- and 16-bit values (cloud.byte_sized_share)."""
+    share = byte_sized_share(rgb)
+    if share > MIXED_DEPTH_SHARE:
+        warn_once(("mixed depth", str(path)), "%s: %.0f %% of its coloured points have 8-bit colour values beside "
+                  "16-bit ones; colour written at two depths (merged deliveries?) misleads the colour cues: "
+                  "scale the 8-bit values by 257 (or all to 8 bits) first", path, 100 * share)
 
 
 # ---------------------------------------------------------------------------------------- writing

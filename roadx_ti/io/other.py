@@ -76,6 +76,8 @@ def _colour(path, rgb: np.ndarray) -> tuple[np.ndarray, int]:
         scale = 255.0 if rgb.size and float(np.nanmax(rgb)) <= 1.0 else 1.0
         rgb = np.clip(np.round(np.nan_to_num(rgb) * scale), 0, 65535)
     rgb = rgb.astype(np.uint16)
+    from .las import warn_mixed_depth
+    warn_mixed_depth(path, rgb)
     return rgb, detect_color_depth(rgb)
 
 

@@ -150,10 +150,16 @@ class RoadRegionsOptions(StageOptions):
 
 
 def colour_channels(cloud: Cloud):
-    """(source, float32 (n, 3) in 8-bit units)."""
+    """(source, float32 (n, 3) in 8-bit units). Colour of which one channel alone varies (a grey
+    or single-band image written into red, the others zero) is that channel's grey in all three:
+    as RGB every point read as saturated red and no region was road."""
     if cloud.has_color:
         rgb = cloud.rgb8()
         if rgb is not None and np.ptp(rgb) > 0:
+            varying = np.flatnonzero(rgb.max(axis=0) != rgb.min(axis=0))
+            if len(varying) == 1:
+                band = int(varying[0])
+                return f"{('red', 'green', 'blue')[band]} as grey", np.repeat(rgb[:, band:band + 1], 3, axis=1)
             return "rgb", rgb.astype(np.float32)
     if cloud.intensity is not None and cloud.intensity.any():
         value = cloud.intensity.astype(np.float32)
@@ -345,6 +351,9 @@ class RoadRegions(Stage):
         if source == "geometry":
             ctx.log.warning("road_regions: the points carry no colour and no intensity: the road is chosen by "
                             "kerbs and shape alone, which finds much less of it")
+        elif source.endswith(" as grey"):
+            ctx.log.warning("road_regions: only the %s channel of the colour varies; it is read as grey",
+                            source.split()[0])
         indices, distances = knn(xyz, k)
         spacing = float(np.median(distances[:, -1]))
         gk = min(o.graph_k or k, k)
