@@ -1385,7 +1385,7 @@ def _merged(paths):
     from roadx_ti import io
     from roadx_ti.tiling import catalog, concat_clouds
 
-    files = catalog(paths)
+    files = [f for f in catalog(paths) if f.count] or catalog(paths)
     origin = np.floor([min(f.bounds[0] for f in files), min(f.bounds[1] for f in files),
                        min(f.z_range[0] for f in files)])
     return concat_clouds([io.read(f.path, origin=origin) for f in files], origin)

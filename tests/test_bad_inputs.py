@@ -879,6 +879,35 @@ def case_longitude_latitude_degrees(d):
     return _tiny(d, src, message="longitude / latitude degrees")
 
 
+
+def case_longitude_latitude_degrees_in_tiles(d):
+    """The same degrees run in tiles: exit 1 naming the degrees (the tiled run went on silently,
+    its DTM georeferenced in degrees)."""
+    from rasterio.crs import CRS
+    xyz = bumpy_ground(800)
+    xyz[:, 0] = 2.35 + (xyz[:, 0] - xyz[:, 0].min()) * 1e-5
+    xyz[:, 1] = 48.85 + (xyz[:, 1] - xyz[:, 1].min()) * 1e-5
+    src = write_las(d / "in" / "lonlat.las", xyz, scale=1e-7, crs_wkt=CRS.from_epsg(4326).to_wkt())
+    return _tiny(d, src, extra=["--tile-size", "30"], message="longitude / latitude degrees")
+
+
+def _geographic_record_over_metres(d, tiled):
+    from rasterio.crs import CRS
+    src = write_las(d / "in" / "wrongcrs.las", bumpy_ground(800), crs_wkt=CRS.from_epsg(4326).to_wkt())
+    return _tiny(d, src, extra=["--tile-size", "30"] if tiled else [],
+                 message="its CRS is geographic (EPSG:4326), but its coordinates are not longitude / latitude degrees")
+
+
+def case_geographic_crs_over_projected_coordinates(d):
+    """A file whose CRS record says EPSG:4326 over UTM-sized coordinates (500,000 / 4,500,000): exit 1
+    saying the record is wrong (it ran and wrote a GeoTIFF claiming impossible longitudes / latitudes)."""
+    return _geographic_record_over_metres(d, False)
+
+
+def case_geographic_crs_over_projected_coordinates_in_tiles(d):
+    """The same in tiles: exit 1 before any tile."""
+    return _geographic_record_over_metres(d, True)
+
 def case_feet_survey_in_tiles(d):
     """A survey in US survey feet run in tiles (windows and buffers would be planned in feet):
     exit 2 saying tiled runs need metres (a whole-file run converts)."""

@@ -515,3 +515,42 @@ def test_scratch_folders_of_killed_runs_are_removed_and_no_other(tmp_path):
         (folder / "t0_f0.rec").write_bytes(b"\0" * 64)
     assert remove_stale_folders(tmp_path) == [stale]
     assert not stale.exists() and running.exists() and elsewhere.exists()
+
+
+
+def test_an_empty_file_in_a_catalog_changes_nothing(tmp_path):
+    """An empty LAS file among others: its default header box (0, 0, 0) - (0, 0, 0) no longer joins
+    the catalog's extent (it put the shared origin millions of metres from the points: spacing
+    estimates 0, 11 % of a roof run's labels changed, a DTM off by up to 0.64 m)."""
+    from cli_helpers import bumpy_ground, write_las
+    from roadx_ti.estimates import measure_catalog
+    from roadx_ti.tiling.plan import catalog_origin, plan_tiles
+
+    folder = tmp_path / "cat"
+    folder.mkdir()
+    write_las(folder / "a.las", bumpy_ground(3000))
+    write_las(folder / "b.las", bumpy_ground(3000, seed=1) + [20.0, 0, 0])
+    without = tiling.catalog([str(folder)])
+    laspy.LasData(laspy.LasHeader(point_format=6, version="1.4")).write(folder / "c_empty.las")
+    files = tiling.catalog([str(folder)])
+    assert len(files) == 3 and min(f.count for f in files) == 0
+    np.testing.assert_array_equal(catalog_origin(files), catalog_origin(without))
+    assert catalog_origin(files)[0] > 499_000
+    a, b = plan_tiles(files, 10.0, 5.0), plan_tiles(without, 10.0, 5.0)
+    assert [t.core for t in a.tiles] == [t.core for t in b.tiles]
+    switch_backend("cpu")
+    spacing = measure_catalog(files, catalog_origin(files))["point_spacing_m"]
+    assert spacing == measure_catalog(without, catalog_origin(without))["point_spacing_m"] and spacing > 0.05
+
+
+def test_merged_output_takes_the_crs_of_the_files_that_name_one(tmp_path):
+    """A catalog whose first file names no CRS and whose second does: the run takes the CRS for
+    both, and so does the merged output's header (it copied the first file's: no CRS at all)."""
+    from rasterio.crs import CRS
+
+    from cli_helpers import bumpy_ground, write_las
+    from roadx_ti.io.las_write import template_source
+
+    a = write_las(tmp_path / "a.las", bumpy_ground(500))
+    b = write_las(tmp_path / "b.las", bumpy_ground(500, seed=1) + [25.0, 0, 0], crs_wkt=CRS.from_epsg(32631).to_wkt())
+    assert template_source([a, b]) == b and template_source([a]) == a

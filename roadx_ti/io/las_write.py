@@ -471,12 +471,19 @@ def check_written(path, tmp, source="") -> None:
 def template_source(sources):
     """The source whose header a merged LAS/LAZ output takes: the first that holds points (an empty
     tile's default header, scales 0.001 and offsets 0, put every other file's coordinates beyond
-    int32), else the first."""
+    int32) and a CRS record, when one does (a catalog takes the CRS of its files that state one for
+    those that do not: a first file without one left the merged output without any), else the
+    first that holds points, else the first."""
+    from .las import crs_records
+
+    with_points = []
     for source in sources:
         with laspy.open(source) as reader:
             if reader.header.point_count:
-                return source
-    return sources[0]
+                if any(crs_records(reader.header)):
+                    return source
+                with_points.append(source)
+    return with_points[0] if with_points else sources[0]
 
 
 def fits_records(low: float, high: float, scale: float, offset: float) -> bool:

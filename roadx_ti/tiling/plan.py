@@ -22,7 +22,7 @@ def _core_edge(points: float, density: float) -> float:
 
 def default_tile_size(files: list[CatalogFile], target_points: int = TARGET_TILE_POINTS) -> float:
     """Edge (m) of a square core holding about ``target_points`` at the catalog's mean density."""
-    area = sum(max(f.bounds[2] - f.bounds[0], 1.0) * max(f.bounds[3] - f.bounds[1], 1.0) for f in files)
+    area = sum(max(f.bounds[2] - f.bounds[0], 1.0) * max(f.bounds[3] - f.bounds[1], 1.0) for f in with_points(files))
     return _core_edge(target_points, sum(f.count for f in files) / area)
 
 
@@ -110,8 +110,18 @@ def align_tiles(cells, tile_size: float, buffer: float, window_cap: int) -> tupl
     return best[1], best[2]
 
 
+def with_points(files: list[CatalogFile]) -> list[CatalogFile]:
+    """The files that hold points (all of them when none does): an empty file's header box is
+    (0, 0, 0) - (0, 0, 0) by laspy's default, and taken into the catalog's extent it put the
+    shared origin millions of metres from the points, whose float32 coordinates lost their
+    centimetres (spacing estimates 0, 11 % of a roof run's labels changed)."""
+    return [f for f in files if f.count] or list(files)
+
+
 def catalog_origin(files: list[CatalogFile]) -> np.ndarray:
-    """The local origin every read of a run shares: the floor of the catalog's minimum corner."""
+    """The local origin every read of a run shares: the floor of the minimum corner of the
+    catalog's files that hold points."""
+    files = with_points(files)
     xmin = min(f.bounds[0] for f in files)
     ymin = min(f.bounds[1] for f in files)
     if not all(math.isfinite(v) for v in (xmin, ymin)):
@@ -267,10 +277,10 @@ def plan_tiles(files: list[CatalogFile], tile_size: float, buffer: float, scan=N
     cells its points occupy): stray points far off stretch a header box over thousands of empty
     tiles. Nothing is allocated per grid cell. ``max_tiles``: raise TooManyTiles when there are more
     occupied tiles."""
-    xmin = min(f.bounds[0] for f in files)
-    ymin = min(f.bounds[1] for f in files)
-    xmax = max(f.bounds[2] for f in files)
-    ymax = max(f.bounds[3] for f in files)
+    xmin = min(f.bounds[0] for f in with_points(files))
+    ymin = min(f.bounds[1] for f in with_points(files))
+    xmax = max(f.bounds[2] for f in with_points(files))
+    ymax = max(f.bounds[3] for f in with_points(files))
     if not all(math.isfinite(v) for v in (xmin, ymin, xmax, ymax)):
         raise ValueError("the catalog's header bounds are not finite; fix the headers (e.g. pdal translate)")
     read_origin = catalog_origin(files)
