@@ -443,33 +443,39 @@ def _pcd_count(path) -> int:
     return count
 
 
+PCD_CHECK_CHUNK = 1 << 24      # bytes of ASCII PCD data checked at a time
+PCD_NOT_NUMERIC = re.compile(rb"[^0-9eE+\-.naNiIfFtTyY\s]")   # bytes no number (nor nan / inf) holds
+
+
 def _check_pcd_ascii(path, start: int, count: int, width: int) -> None:
     """ASCII PCD data: ``count`` rows of ``width`` numbers each (Open3D read missing rows as
-    uninitialised memory and words as 0)."""
+    uninitialised memory and words as 0), checked a chunk of lines at a time."""
+    rows, tail = 0, b""
     with open(path, "rb") as f:
         f.seek(start)
-        rows = [r for r in f.read().split(b"\n") if r.strip()]
-    if len(rows) != count:
-        raise fail(path, f"truncated or corrupt PCD file: {count} points declared, {len(rows)} data rows")
-    if not rows:
-        return
-    words = [len(r.split()) for r in rows]
-    bad = next((i for i, w in enumerate(words) if w != width), None)
-    if bad is not None:
-        raise fail(path, f"corrupt PCD file: data row {bad + 1} holds {words[bad]} values, FIELDS names {width}")
-    try:
-        np.array(b" ".join(rows).split(), dtype=np.float64)
-    except ValueError:
-        word = next(w for r in rows for w in r.split() if not _is_number(w))
-        raise fail(path, f"corrupt PCD file: {word[:40].decode('ascii', 'replace')!r} in the data is not a number") from None
-
-
-def _is_number(word: bytes) -> bool:
-    try:
-        float(word)
-        return True
-    except ValueError:
-        return False
+        while True:
+            block = f.read(PCD_CHECK_CHUNK)
+            text = tail + block
+            if block:
+                cut = text.rfind(b"\n") + 1
+                text, tail = text[:cut], text[cut:]
+            bad = PCD_NOT_NUMERIC.search(text)
+            if bad:
+                at = bad.start()
+                first = max(text.rfind(b" ", 0, at), text.rfind(b"\t", 0, at), text.rfind(b"\n", 0, at)) + 1
+                word = text[first:].split()[0]
+                raise fail(path, f"corrupt PCD file: {word[:40].decode('ascii', 'replace')!r} in the data is not a number")
+            for line in text.split(b"\n"):
+                words = len(line.split())
+                if not words:
+                    continue
+                rows += 1
+                if words != width:
+                    raise fail(path, f"corrupt PCD file: data row {rows} holds {words} values, FIELDS names {width}")
+            if not block:
+                break
+    if rows != count:
+        raise fail(path, f"truncated or corrupt PCD file: {count} points declared, {rows} data rows")
 
 
 def _open3d_message(exc: Exception) -> str:
