@@ -1006,3 +1006,24 @@ def test_npz_rows_per_point_kept_and_members_not_arrays_refused(tmp_path):
     with zipfile.ZipFile(tmp_path / "p.npz", "w") as z:
         z.writestr("xyz", b"\x80\x04not an npy member")
     assert "NPZ member 'xyz' is not a numpy array" in one_line_error(tmp_path / "p.npz", io.read, tmp_path / "p.npz")
+
+
+def test_odd_values_of_other_formats_said(tmp_path, caplog):
+    """Values that were changed silently are said: return counts that are none (300, -1: clipped to
+    255 / 0, then used as the vegetation cue), NaN colour (read as black), and a binary PLY holding
+    more vertex rows than it declares (the ASCII path said so, the binary one did not)."""
+    xyz = np.random.default_rng(0).random((20, 3)).astype(np.float32)
+    np.savez(tmp_path / "r.npz", xyz=xyz, return_number=np.full(20, 300), number_of_returns=np.ones(20, int))
+    colour = np.full((20, 3), 0.5)
+    colour[3] = np.nan
+    rows = np.column_stack([xyz, colour]).astype(np.float32)
+    header = ("ply\nformat binary_little_endian 1.0\nelement vertex 15\n" + "".join(
+        f"property float {n}\n" for n in ("x", "y", "z", "red", "green", "blue")) + "end_header\n").encode()
+    (tmp_path / "c.ply").write_bytes(header + rows.tobytes())
+    with caplog.at_level("WARNING"):
+        assert io.read(tmp_path / "r.npz").returns is None
+        cloud = io.read(tmp_path / "c.ply")
+    assert cloud.n == 15 and cloud.rgb[3].tolist() == [0, 0, 0]
+    assert "hold values that are no return counts (whole numbers 0-255, e.g. 300)" in caplog.text
+    assert "1 points have no colour value (NaN); they are taken as black" in caplog.text
+    assert "holds 5 more vertex rows than its header declares (15)" in caplog.text

@@ -61,7 +61,7 @@ def world_cloud(path, world: np.ndarray, origin, columns: dict) -> Cloud:
     nir = _take_integral(columns, lower, NIR_NAMES, np.uint16, taken)
     attributes = {k: np.asarray(v) for k, v in columns.items() if k not in taken}
     kw = dict(rgb=rgb, color_depth=depth or 0, intensity=intensity, classification=classification, nir=nir,
-              returns=_returns(attributes), attributes=attributes, source=str(path))
+              returns=_returns(path, attributes), attributes=attributes, source=str(path))
     return Cloud.from_world(world, origin=origin, **kw)
 
 
@@ -73,6 +73,9 @@ def _colour(path, rgb: np.ndarray) -> tuple[np.ndarray, int]:
         raise fail(path, f"colour values must be 0-65535 (8- or 16-bit) or 0-1, got {np.nanmin(values):g} to "
                          f"{np.nanmax(values):g}")
     if rgb.dtype.kind == "f":
+        missing = int(np.count_nonzero(np.isnan(rgb).any(axis=-1))) if rgb.size else 0
+        if missing:     # read as black (0), which a warning says
+            log.warning("%s: %d points have no colour value (NaN); they are taken as black", path, missing)
         scale = 255.0 if rgb.size and float(np.nanmax(rgb)) <= 1.0 else 1.0
         rgb = np.clip(np.round(np.nan_to_num(rgb) * scale), 0, 65535)
     rgb = rgb.astype(np.uint16)
@@ -150,14 +153,21 @@ def writable_columns(cloud: Cloud, classification, extra_dims, subset):
     return world, cols
 
 
-def _returns(attributes: dict) -> np.ndarray | None:
+def _returns(path, attributes: dict) -> np.ndarray | None:
     """(n, 2) uint8 return number / number of returns from columns of those names (they stay
     attributes too, written back as they came), else None."""
     lower = {k.lower(): k for k in attributes}
     if "return_number" not in lower or "number_of_returns" not in lower:
         return None
-    return np.column_stack([np.asarray(attributes[lower["return_number"]]),
-                            np.asarray(attributes[lower["number_of_returns"]])]).clip(0, 255).astype(np.uint8)
+    pair = np.column_stack([np.asarray(attributes[lower["return_number"]]),
+                            np.asarray(attributes[lower["number_of_returns"]])])
+    if pair.size and (np.nanmin(pair) < 0 or np.nanmax(pair) > 255 or not np.array_equal(pair, np.round(pair))):
+        # 300 or -1 were clipped to 255 / 0 silently; the columns stay attributes as they came
+        log.warning("%s: return_number / number_of_returns hold values that are no return counts (whole numbers "
+                    "0-255, e.g. %g); the returns are not used as a cue", path, pair[(pair < 0) | (pair > 255)
+                    | (pair != np.round(pair))].flat[0] if pair.size else 0)
+        return None
+    return pair.astype(np.uint8)
 
 
 def _coord_decimals(cloud: Cloud) -> int:
@@ -269,6 +279,12 @@ def read_ply(path, origin=None) -> Cloud:
                              f"{len(raw) // max(dtype.itemsize, 1)} present")
         table = raw.view(dtype)
         data = {p: table[p].astype(np.dtype(t).newbyteorder("=")) for p, t in props}
+        if names[-1] == "vertex":
+            # more vertex rows than declared after the last element: not read, as the ASCII path says
+            extra = (os.path.getsize(path) - start - skip - count * dtype.itemsize) // max(dtype.itemsize, 1)
+            if extra > 0:
+                log.warning("%s: holds %d more vertex rows than its header declares (%d); they are not read",
+                            path, extra, count)
     world = np.column_stack([data.pop(axes[a]) for a in ("x", "y", "z")]).astype(np.float64)
     if origin is not None and origin is stored_origin and len(world) and np.all(np.isfinite(world)):
         if float(np.abs(world - origin).max()) > ORIGIN_REACH:
@@ -625,7 +641,7 @@ def read_npz(path, origin=None) -> Cloud:
                  intensity=None if intensity is None else intensity.astype(np.uint16),
                  classification=None if classes is None else classes.astype(np.uint8),
                  nir=None if nir is None else nir.astype(np.uint16),
-                 returns=_returns(attributes), attributes=attributes, source=str(path))
+                 returns=_returns(path, attributes), attributes=attributes, source=str(path))
 
 
 def _not_whole(a: np.ndarray, top: int) -> np.ndarray:
