@@ -53,6 +53,10 @@ def as_ndarray(a, dtype=None):
     arr = np.ascontiguousarray(a, dtype=dtype)
     if arr.size >= INT32_MAX:
         raise ValueError(f"array of {arr.size} elements exceeds Taichi's 32-bit indexing; tile the input")
+    if arr.size == 0:
+        # Taichi has no empty ndarray ('(0, 3) is not a valid shape' on a GPU arch): the wrappers
+        # launch no kernel over no points, so the empty numpy array stands for it
+        return arr
     out = ndarray(arr.dtype, arr.shape)
     out.from_numpy(arr)
     return out

@@ -1204,7 +1204,11 @@ PICTURED_SEEDS = (0,)               # PNGs of these seeds only (31 pictures woul
 
 
 def _size_name(points: int) -> str:
-    return f"{points // 1_000_000} M" if points >= 1_000_000 else f"{points // 1000} k"
+    # exact: 1,500 points is "1.5 k" (it was "1 k", the name of another scene)
+    for unit, name in ((1_000_000, "M"), (1000, "k")):
+        if points >= unit:
+            return f"{points / unit:g} {name}" if points % (unit // 1000) == 0 else f"{points:,}"
+    return f"{points:,}"
 
 
 def road_datasets(sizes=ROAD_SIZES, seeds=ROAD_SEEDS, large=ROAD_LARGE):
@@ -1631,9 +1635,16 @@ def main(args) -> int:
     road_rows = road_datasets(_sizes(args.road_sizes), _seeds(args.road_seeds), (large, 0) if large else None)
     roof_rows = roof_datasets(_sizes(args.roof_sizes), _seeds(args.roof_seeds))
     results = {task: evaluate(task, out, road_rows if task == "road" else roof_rows) for task in tasks}
-    command = (f"python -m roadx_ti accuracy --task {args.task} --road-sizes {args.road_sizes} "
-               f"--road-seeds {args.road_seeds} --road-large '{args.road_large}' --roof-sizes {args.roof_sizes} "
-               f"--roof-seeds {args.roof_seeds}")
+    # the options this run used, as given (a roof run listed the road matrix and left out --backend / --out)
+    command = f"python -m roadx_ti accuracy --task {args.task}"
+    if "road" in tasks:
+        command += f" --road-sizes {args.road_sizes} --road-seeds {args.road_seeds} --road-large '{args.road_large}'"
+    if "roof" in tasks:
+        command += f" --roof-sizes {args.roof_sizes} --roof-seeds {args.roof_seeds}"
+    if args.backend != "cpu":
+        command += f" --backend {args.backend}"
+    if out.resolve() != (REPO / "benchmarks" / "accuracy").resolve():
+        command += f" --out {args.out}"
     produced = {task: {"command": command, "date": time.strftime("%Y-%m-%d")} for task in tasks}
     # a run of one task keeps the other task's rows (and says so): the report stays whole
     report, produced = merge_with_previous(results, produced, previous_results(out / "accuracy.json"))

@@ -32,7 +32,13 @@ class UsageError(Exception):
 
 
 class _OneLineParser(argparse.ArgumentParser):
-    """argparse, whose mistakes are one line (its usage text is for --help)."""
+    """argparse, whose mistakes are one line (its usage text is for --help); an option that takes
+    one value is given once (_Once: argparse kept the last of two silently)."""
+
+    def add_argument(self, *names, **kwargs):
+        if names and names[0].startswith("-") and "action" not in kwargs and "nargs" not in kwargs:
+            kwargs["action"] = _Once
+        return super().add_argument(*names, **kwargs)
 
     def error(self, message):
         command = self.prog.partition(" ")[2]        # 'roadx_ti synth' -> 'synth'
@@ -45,8 +51,10 @@ class _Once(argparse.Action):
     '--output a.laz --output b.laz' wrote b.laz alone)."""
 
     def __call__(self, parser, namespace, values, option_string=None):
-        if getattr(namespace, self.dest, None) is not None:
+        given = namespace.__dict__.setdefault("_given_once", set())    # (defaults are not "given")
+        if self.dest in given:
             parser.error(f"{option_string} given twice; give it once")
+        given.add(self.dest)
         setattr(namespace, self.dest, values)
 
 
@@ -59,7 +67,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("config", help="YAML config (see configs/)")
     r.add_argument("--input", nargs="+", action="extend", metavar="PATH", help="input point cloud(s), folder(s) "
                    "or quoted wildcard patterns ('tiles/*.laz'), replacing the config's (repeatable)")
-    r.add_argument("--output", action=_Once, metavar="PATH", help="output point cloud, replacing the config's")
+    r.add_argument("--output", metavar="PATH", help="output point cloud, replacing the config's")
     r.add_argument("--backend", choices=["auto", "cpu", "vulkan", "cuda", "metal"])
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a config key, e.g. --set stages.sor.k=30 (repeatable)")
@@ -784,6 +792,8 @@ def cmd_eval(args) -> int:
         if cloud.classification is None:
             raise DataError(f"{name} has no classification")
     _same_points(pred, truth, args.pred, args.truth)
+    if not truth.n:
+        log.warning("%s and %s hold no points; every measure is null", args.pred, args.truth)
     for cloud, classes, name in ((pred, pred_classes, args.pred), (truth, truth_classes, args.truth)):
         if cloud.n and not class_mask(cloud.classification, classes).any():
             log.warning("%s: no point carries class %s", name, ", ".join(str(c) for c in classes))

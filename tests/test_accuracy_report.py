@@ -98,3 +98,21 @@ def test_the_committed_report_carries_every_note():
     text = (REPO / "benchmarks" / "accuracy" / "ACCURACY.md").read_text()
     missing = [note[:60] for task in accuracy.NOTES for note in accuracy.NOTES[task] if f"- {note}\n" not in text]
     assert not missing, missing
+
+
+def test_scene_names_are_exact_and_the_command_is_the_runs(tmp_path):
+    """A 1,500-point scene is '1.5 k' (it was named '1 k', another scene's name); the report's
+    command lists the options of the tasks that ran, the backend and the folder (a roof run listed
+    the road matrix and left out --backend and --out)."""
+    import argparse
+    import json
+    from unittest import mock
+
+    assert [accuracy._size_name(n) for n in (1500, 300_000, 4_000_000, 2_500_000)] == ["1.5 k", "300 k", "4 M", "2.5 M"]
+    args = argparse.Namespace(task="roof", road_sizes="300k", road_seeds="0-9", road_large="16M", roof_sizes="1.5k",
+                              roof_seeds="0", backend="vulkan", out=str(tmp_path / "acc"))
+    with mock.patch.object(accuracy, "evaluate", return_value=[]), mock.patch("roadx_ti.backend.init"):
+        accuracy.main(args)
+    command = json.loads((tmp_path / "acc" / "accuracy.json").read_text())["command"]
+    assert command == ("python -m roadx_ti accuracy --task roof --roof-sizes 1.5k --roof-seeds 0 "
+                       f"--backend vulkan --out {tmp_path / 'acc'}")

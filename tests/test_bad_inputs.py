@@ -50,7 +50,8 @@ class Case:
 
 def _run(config, folder: Path, *inputs, output=None, extra=(), code=1, **kw) -> Case:
     out = output if output is not None else folder / "out" / "result.laz"
-    args = ["run", config, "--backend", "cpu", "--quiet", "--output", out, *extra]
+    backend = [] if "--backend" in extra else ["--backend", "cpu"]     # an option is given once
+    args = ["run", config, *backend, "--quiet", "--output", out, *extra]
     if inputs:
         args += ["--input", *inputs]
     return Case(args=args, code=code, output=Path(out), **kw)

@@ -189,6 +189,10 @@ def test_command_line_mistakes_are_one_line(tmp_path, args, said):
      "--output given twice; give it once"),                                        # wrote b.laz alone
     (["info", "nope.laz"], "nope.laz: no such file"),                              # exit 1, run's exit 2
     (["eval", "--pred", "nope.laz", "--truth", "nope.laz", "--truth-classes", "11"], "--pred nope.laz: no such file"),
+    (["eval", "--pred", "a.laz", "--truth", "a.laz", "--truth-classes", "11", "--truth-classes", "2"],
+     "--truth-classes given twice; give it once"),                                 # scored class 2 alone
+    (["synth", "--kind", "uav-road", "--points", "2000", "--seed", "1", "--seed", "2", "-o", "x.laz"],
+     "--seed given twice"),
 ])
 def test_mistakes_in_the_other_commands_are_one_line_before_any_work(tmp_path, args, said):
     """The bench, accuracy and synth options (and rules over several config keys) checked before any
@@ -287,3 +291,12 @@ def test_a_stopped_run_shuts_down_without_tracebacks():
             "logging.getLogger('tornado.application').error('cannot access free variable')\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.stderr.strip() == "no partial output was left", proc.stderr
+
+
+def test_eval_of_files_without_points_says_so(tmp_path):
+    """Two files of no point: every measure null, and a warning saying why (it was silent)."""
+    laspy.LasData(laspy.LasHeader(point_format=6, version="1.4")).write(tmp_path / "e.las")
+    proc = run_cli("eval", "--pred", "e.las", "--truth", "e.las", "--truth-classes", "11", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["kappa"] is None
+    assert "e.las and e.las hold no points; every measure is null" in proc.stderr

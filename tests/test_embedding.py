@@ -14,7 +14,7 @@ HOST_PROGRAM = textwrap.dedent("""
     import numpy as np
     ti = importlib.import_module(sys.argv[2])     # the host's own Taichi (taichi or taichi_forge)
 
-    ti.init(arch=getattr(ti, sys.argv[1]), offline_cache=False)          # the host owns the runtime
+    ti.init(arch=getattr(ti, sys.argv[1]), offline_cache=False, fast_math=False)   # the host owns the runtime
 
     from roadx_ti import backend
     from roadx_ti.kernels.grid import build_grid, voxel_downsample
@@ -111,4 +111,29 @@ def test_host_runtime_settings_and_misuse_are_clear_errors():
     from tests.conftest import REPO
     proc = subprocess.run([sys.executable, "-c", program, str(REPO / "configs" / "ground.yaml")], capture_output=True,
                           text=True, timeout=300, cwd="/tmp")
+    assert proc.returncode == 0 and proc.stdout.strip().endswith("ok"), proc.stderr[-2000:]
+    assert proc.stderr.count("runs with fast_math on (ti.init's default)") == 1, proc.stderr[-2000:]
+
+
+EMPTY_INPUTS = textwrap.dedent('''
+    import sys
+    import numpy as np
+    from roadx_ti.kernels.taichi_compat import ti
+    ti.init(arch=getattr(ti, sys.argv[1]), offline_cache=False, fast_math=False)
+    from roadx_ti.kernels import cloth, grid, neighbors
+    empty = np.zeros((0, 3), np.float32)
+    assert len(grid.voxel_downsample(empty, 0.5)) == 0
+    offsets, idx = neighbors.radius_search(empty, 0.5)
+    assert list(offsets) == [0] and len(idx) == 0
+    assert grid.build_grid(empty).n == 0
+    assert len(cloth.csf(empty).ground) == 0
+    print("ok")
+''')
+
+
+@pytest.mark.parametrize("arch", KERNEL_BACKENDS)
+def test_empty_inputs_give_empty_results_on_every_arch(arch):
+    """No point in, no point out, on a GPU arch too (Vulkan copied the empty numpy input to the
+    device: '(0, 3) is not a valid shape for ndarray')."""
+    proc = subprocess.run([sys.executable, "-c", EMPTY_INPUTS, arch], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0 and proc.stdout.strip().endswith("ok"), proc.stderr[-2000:]
