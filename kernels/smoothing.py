@@ -35,9 +35,9 @@ def neighbor_mean(values, neighbors, passes: int = 1):
     """
     shape = tuple(values.shape)
     n = shape[0]
+    if n == 0 or (len(shape) > 1 and 0 in shape[1:]):
+        return np.zeros(shape, np.float32)       # (reshape(0, -1) of no value failed)
     host = to_numpy(values).astype(np.float32).reshape(n, -1) if (len(shape) == 1 or not is_ndarray(values)) else None
-    if n == 0 or host is not None and host.shape[1] == 0:
-        return np.zeros(shape, np.float32)
     a = ndarray(ti.f32, (n, host.shape[1] if host is not None else shape[1]))
     if host is not None:
         a.from_numpy(np.ascontiguousarray(host))

@@ -115,7 +115,7 @@ def current_arch():
         import logging
         logging.getLogger("roadx_ti").warning(
             "the Taichi runtime runs with fast_math on (ti.init's default); roadx_ti's own runs use "
-            "ti.init(..., fast_math=False), and results differ in the last bits from theirs (about 0.1 %% of "
+            "ti.init(..., fast_math=False), and results differ in the last bits from theirs (about 0.1 % of "
             "the labels of a road scene): start Taichi with fast_math=False for the same results")
     return cfg.arch
 

@@ -436,13 +436,14 @@ def _cmd_run(args) -> int:
         cfg.backend = args.backend
     if args.buffer is not None and not cfg.tiled:
         log.warning("--buffer is the tiles' buffer; this run is untiled (give --tile-size to tile it)")
+    if not cfg.input.paths and cfg.input.synthetic is None:
+        raise config.ConfigError("config error: input: give input.paths, input.synthetic or --input PATH")
+    cfg.input.paths = _expand_patterns(cfg.input.paths)
+    # after the patterns are expanded: 'tiles/*.laz' is a catalog
     if cfg.output.mode == "per-file" and not cfg.tiled and Path(str(cfg.output.path)).suffix.lower() not in io.EXTENSIONS:
         # (it said "unknown output format '(no extension)'" of the folder it was given)
         raise UsageError(f"{cfg.output.path}: output.mode per-file writes one file per input of a catalog or tiled "
                          "run into a folder; this run is one file, untiled: give an output file name (e.g. out.laz)")
-    if not cfg.input.paths and cfg.input.synthetic is None:
-        raise config.ConfigError("config error: input: give input.paths, input.synthetic or --input PATH")
-    cfg.input.paths = _expand_patterns(cfg.input.paths)
     out = Path(cfg.output.path)
     if cfg.dtm_path() is not None:
         _check_distinct_outputs(out, cfg.dtm_path())

@@ -148,13 +148,18 @@ MIXED_DEPTH_SHARE = 0.05     # of the coloured points: more that fit in a byte b
 def byte_sized_share(rgb: np.ndarray) -> float:
     """In colour with 16-bit values, the share of the points not black whose three channels all
     fit in a byte: 8-bit values written beside 16-bit ones (merged deliveries; every second point
-    so collapsed the road to 5 % of itself). Genuine 16-bit colour, scaled from 8 bits or not,
-    holds almost none (under 0.4 % of full scale in every channel). 0 for 8-bit colour."""
+    so collapsed the road to 5 % of itself). Genuine 16-bit colour scaled from 8 bits holds almost
+    none, and dark genuine 16-bit colour as many in 256-511 (0 then). 0 for 8-bit colour."""
     if rgb is None or not len(rgb) or detect_color_depth(rgb) != 16:
         return 0.0
     top = rgb.max(axis=1)
     lit = top > 0
-    return float(np.count_nonzero(lit & (top <= 255)) / max(int(np.count_nonzero(lit)), 1))
+    low = int(np.count_nonzero(lit & (top <= 255)))
+    # genuine dark 16-bit colour runs on past 255 (a scene of 0-745 had 16 % of its points under
+    # 256); 8-bit values beside ones scaled by 256 or 257 leave 256-511 nearly empty
+    if np.count_nonzero((top > 255) & (top <= 511)) > 0.1 * low:
+        return 0.0
+    return float(low / max(int(np.count_nonzero(lit)), 1))
 
 
 def detect_color_depth(rgb: np.ndarray) -> int:

@@ -186,13 +186,15 @@ class RunConfig(_Strict):
             pipeline = next(p for p, c in PIPELINE_TARGET.items() if c == labels)
             raise ConfigError(f"config error: pipeline = {self.pipeline!r}, but stages[{i}] {name} labels class "
                               f"{labels} ({pipeline}), not {target}; set pipeline: {pipeline}")
-        if labelling and labelling[-1][0] < len(out) - 1:
+        after = [(j, n) for j, (n, _) in enumerate(out) if labelling and j > labelling[-1][0]
+                 and stage_class(n).narrows]
+        if after:
             # the labels are made on the points that reach the labelling stage: a filter after it
             # removed labelled points (road_regions first, then the filters: exit 0, no road at all)
             i, name, labels = labelling[-1]
-            after = ", ".join(f"stages[{j}] {n}" for j, (n, _) in enumerate(out) if j > i)
-            raise ConfigError(f"config error: {after} after stages[{i}] {name}, which labels class {labels}: the "
-                              f"last stage labels the points that reach it; put {name} last")
+            named = ", ".join(f"stages[{j}] {n}" for j, n in after)
+            raise ConfigError(f"config error: {named} after stages[{i}] {name}, which labels class {labels}, would "
+                              f"remove labelled points; put the filters before {name}")
         return out
 
     @field_validator("memory_limit", mode="before")

@@ -247,12 +247,19 @@ def test_double_star_pattern_reaches_every_depth(tmp_path):
 
 
 def test_per_file_output_of_one_untiled_file_is_a_usage_error(tmp_path):
+    """One file untiled has no per-file output (it said "unknown output format '(no extension)'");
+    a pattern that matches several files is a catalog, whose per-file output goes on."""
     from cli_helpers import error_line
     src = _tiny_las(tmp_path / "one.las")
     proc = run_cli("run", str(REPO / "configs" / "ground.yaml"), "--input", str(src), "--output",
                    str(tmp_path / "pf"), "--output-mode", "per-file", "--backend", "cpu")
     assert "per-file writes one file per input of a catalog or tiled run" in error_line(proc, 2)
     assert not (tmp_path / "pf").exists()
+    _tiny_las(tmp_path / "two.las")
+    proc = run_cli("run", str(REPO / "configs" / "ground.yaml"), "--input", str(tmp_path / "*.las"), "--output",
+                   str(tmp_path / "pf"), "--output-mode", "per-file", "--backend", "cpu", "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    assert {"one.las", "two.las"} <= {p.name for p in (tmp_path / "pf").iterdir()}
 
 
 def test_environment_oddities(tmp_path):

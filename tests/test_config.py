@@ -78,7 +78,7 @@ def test_memory_limit_in_bytes_as_a_number():
      ["stages.sor.k=7"], "has 2 sor stages (stages 0, 1); name one by its position, e.g. stages.0.sor.k"),
     # a filter after the labelling stage removed labelled points: exit 0 and no road at all
     ({"pipeline": "road", "stages": [{"road_regions": {}}, {"cloth_smooth": {}}, {"sor": {}}]}, [],
-     "stages[1] cloth_smooth, stages[2] sor after stages[0] road_regions, which labels class 11"),
+     "stages[1] cloth_smooth, stages[2] sor after stages[0] road_regions, which labels class 11, would remove"),
 ])
 def test_config_errors_are_one_line(mapping, overrides, expected):
     with pytest.raises(config.ConfigError) as info:
@@ -130,3 +130,10 @@ def test_the_demo_runs_the_stages_of_road_uav():
     demo = config.load(REPO / "configs" / "demo.yaml").stage_list()
     road = config.load(REPO / "configs" / "road_uav.yaml").stage_list()
     assert [(n, o.model_dump()) for n, o in demo] == [(n, o.model_dump()) for n, o in road]
+
+
+def test_a_stage_that_keeps_every_point_may_follow_the_labelling_stage():
+    """height_above_ground after cloth_ground (README's example) computes and narrows nothing: taken."""
+    cfg = config.from_mapping({"pipeline": "ground", "stages": [{"cloth_ground": {}},
+                                                                {"height_above_ground": {"clamp_negative": False}}]})
+    assert [name for name, _ in cfg.stage_list()] == ["cloth_ground", "height_above_ground"]

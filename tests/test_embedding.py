@@ -113,6 +113,7 @@ def test_host_runtime_settings_and_misuse_are_clear_errors():
                           text=True, timeout=300, cwd="/tmp")
     assert proc.returncode == 0 and proc.stdout.strip().endswith("ok"), proc.stderr[-2000:]
     assert proc.stderr.count("runs with fast_math on (ti.init's default)") == 1, proc.stderr[-2000:]
+    assert "about 0.1 % of the labels" in proc.stderr
 
 
 EMPTY_INPUTS = textwrap.dedent('''
@@ -127,6 +128,8 @@ EMPTY_INPUTS = textwrap.dedent('''
     assert list(offsets) == [0] and len(idx) == 0
     assert grid.build_grid(empty).n == 0
     assert len(cloth.csf(empty).ground) == 0
+    from roadx_ti.kernels.smoothing import neighbor_mean
+    assert neighbor_mean(np.zeros(0, np.float32), np.zeros((0, 3), np.int32)).shape == (0,)
     print("ok")
 ''')
 

@@ -894,7 +894,8 @@ def test_waveform_records_of_several_files_merged_are_said_dropped(tmp_path, cap
     with caplog.at_level("WARNING"):
         write_las_stream(out, files, labels, empty=(None, {}, None))
     assert _waveform_record_of(out) is None and len(laspy.read(out).points) == 80
-    assert "which one file cannot hold" in caplog.text
+    assert "2 of its inputs each point into a waveform record of their own" in caplog.text
+    assert not any(v.record_id == 65535 for v in laspy.read(out).header.evlrs or [])
 
 
 @pytest.mark.parametrize("name,point_format,standard", [("x", 3, "X"), ("Intensity", 7, "intensity"),
@@ -1027,3 +1028,42 @@ def test_odd_values_of_other_formats_said(tmp_path, caplog):
     assert "hold values that are no return counts (whole numbers 0-255, e.g. 300)" in caplog.text
     assert "1 points have no colour value (NaN); they are taken as black" in caplog.text
     assert "holds 5 more vertex rows than its header declares (15)" in caplog.text
+
+
+def test_merge_of_one_file_with_a_waveform_record_keeps_it(tmp_path):
+    """Of two merged files only one has a waveform record: the output keeps it, pointed at (the
+    warning said both had records of their own and the header denied the record it still held)."""
+    from roadx_ti.io.las_write import write_las_stream
+
+    with_record = tmp_path / "a.las"
+    record = _with_waveform_record(with_record, "1.4", 9)
+    plain = tmp_path / "b.las"
+    las = laspy.read(with_record)
+    las.header.global_encoding.value = 0
+    las.header.evlrs = laspy.vlrs.vlrlist.VLRList()
+    las.write(plain)
+    out = tmp_path / "merged.las"
+    write_las_stream(out, [with_record, plain], lambda i, chunk: (None, {}, None), empty=(None, {}, None))
+    assert _waveform_record_of(out) == record
+
+
+def test_valid_names_and_layouts_still_read(tmp_path, caplog):
+    """What the checks above must not refuse: extra dimensions of distinct non-ASCII names ('α',
+    'β' were two '��'), a PCL padding field '_' of several bytes, dark genuine 16-bit colour
+    (no mixed-depth warning: 16 % of its points under 256)."""
+    header = laspy.LasHeader(point_format=7, version="1.4")
+    header.add_extra_dims([laspy.ExtraBytesParams(name=n, type=np.float32) for n in ("α", "β")])
+    las = laspy.LasData(header)
+    las.x = las.y = las.z = np.arange(50.0)
+    rng = np.random.default_rng(0)
+    dark = np.clip(rng.integers(0, 250, (50, 3)) * 3 + rng.normal(0, 20, (50, 3)), 0, 745).astype(np.uint16)
+    las.red, las.green, las.blue = dark.T
+    las.write(tmp_path / "greek.las")
+    with caplog.at_level("WARNING"):
+        cloud = io.read(tmp_path / "greek.las")
+    assert cloud.n == 50 and "beside 16-bit" not in caplog.text
+    body = b"".join(np.float32([i, 2 * i, 3 * i]).tobytes() + b"\0" * 4 + np.float32([7 + i]).tobytes() for i in range(3))
+    head = ("# .PCD v0.7\nVERSION 0.7\nFIELDS x y z _ intensity\nSIZE 4 4 4 1 4\nTYPE F F F U F\nCOUNT 1 1 1 4 1\n"
+            "WIDTH 3\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA binary\n").encode()
+    (tmp_path / "pad.pcd").write_bytes(head + body)
+    assert io.read(tmp_path / "pad.pcd").intensity.tolist() == [7, 8, 9]

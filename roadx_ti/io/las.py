@@ -173,16 +173,16 @@ def _check_extra_names(path, point_format: int, names: list) -> None:
                                        *laspy.PointFormat(point_format).dtype().names)}
     seen = set()
     for raw in names:
-        name = raw.decode("ascii", "replace")
+        name = raw.decode("utf-8", "backslashreplace")      # distinct bytes, distinct names ('α', 'β')
         if not name:
             continue        # laspy names an unnamed one itself
         if name.lower() in standard:
             raise fail(path, f"its extra dimension {name!r} has the name of the standard dimension "
                              f"{standard[name.lower()]!r} (names compare without case): readers cannot tell them "
                              "apart; rename it (e.g. in laspy, or pdal translate with filters.ferry)")
-        if name in seen:
+        if raw in seen:
             raise fail(path, f"two of its extra dimensions are named {name!r}; rename one (e.g. in laspy)")
-        seen.add(name)
+        seen.add(raw)
 
 
 def _las_error(path, exc: Exception) -> InputError:

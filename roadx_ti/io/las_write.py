@@ -8,6 +8,7 @@ offset = its origin. Outputs are written atomically (roadx_ti.io.atomic).
 """
 from __future__ import annotations
 
+import contextlib
 import copy
 from dataclasses import replace
 import logging
@@ -380,17 +381,18 @@ def keep_waveform_record(path, tmp, sources) -> None:
     if not encoding & WAVEFORM_INTERNAL and pointer == 0:
         return
     where = 0
+    holders = waveform_sources(sources)
     if not encoding & WAVEFORM_INTERNAL:
         pass                         # external or no packets: a stale pointer is cleared below
-    elif len({str(s) for s in sources}) > 1:
-        warn_once(("waveform", str(path)), "writing %s: its %d inputs each point into a waveform record of their own, "
-                  "which one file cannot hold; the output says it has none (the wave packet fields are kept as read)",
-                  path, len(sources))
+    elif len(holders) > 1:
+        warn_once(("waveform", str(path)), "writing %s: %d of its inputs each point into a waveform record of their "
+                  "own, which one file cannot hold; the output has none (the wave packet fields are kept as read)",
+                  path, len(holders))
     elif head[25] >= 4:
         where = _waveform_evlr(tmp, head)
-    else:
-        where = _append_waveform_record(tmp, sources[0])
-    if not where and encoding & WAVEFORM_INTERNAL and len({str(s) for s in sources}) == 1:
+    elif holders:
+        where = _append_waveform_record(tmp, holders[0])
+    if not where and encoding & WAVEFORM_INTERNAL and len(holders) <= 1:
         warn_once(("waveform", str(path)), "writing %s: the input's waveform data packet record could not be found; "
                   "the output says it has none (the wave packet fields are kept as read)", path)
     with open(tmp, "r+b") as f:
@@ -398,6 +400,19 @@ def keep_waveform_record(path, tmp, sources) -> None:
         f.write(struct.pack("<H", encoding if where else encoding & ~WAVEFORM_INTERNAL))
         f.seek(WAVEFORM_POINTER)
         f.write(struct.pack("<Q", where))
+
+
+def waveform_sources(sources) -> list:
+    """The distinct LAS sources whose header says their waveform data packets are inside them."""
+    import struct
+
+    out = []
+    for source in dict.fromkeys(str(s) for s in sources):
+        with contextlib.suppress(OSError), open(source, "rb") as f:
+            head = f.read(8)
+            if len(head) == 8 and head[:4] == b"LASF" and struct.unpack_from("<H", head, 6)[0] & WAVEFORM_INTERNAL:
+                out.append(source)
+    return out
 
 
 def _waveform_evlr(tmp, head: bytes) -> int:
@@ -549,6 +564,10 @@ def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_
                 if on_file is not None:
                     on_file(i, seen)
             evlrs = first.header.evlrs
+            if evlrs and len(waveform_sources(sources)) > 1:
+                # several files' waveform records: none is the merged points' (keep_waveform_record says so)
+                evlrs = laspy.vlrs.vlrlist.VLRList([v for v in evlrs if not (v.user_id == "LASF_Spec"
+                                                                             and v.record_id == 65535)])
             if evlrs and writer.header.version.minor >= 4:
                 # the first file's extended VLRs (a WKT CRS, PDAL's metadata, waveform descriptions)
                 # after the points, as LasData.write puts them; laspy's writer leaves them out

@@ -440,7 +440,7 @@ def _pcd_count(path) -> int:
         if size not in PCD_TYPES.get(kind, ()):
             raise fail(path, f"PCD field {name!r} has TYPE {kind} SIZE {size}, which is not read (floats of 4 or 8 "
                              "bytes, integers of 1, 2, 4 or 8); convert it (e.g. pcl_convert_pcd_ascii_binary, Open3D)")
-        if counts is not None and counts[i] != 1:
+        if counts is not None and counts[i] != 1 and name != "_":     # '_': PCL's padding bytes, skipped
             raise fail(path, f"PCD field {name!r} has COUNT {counts[i]}: only fields of one value are read (histograms, "
                              "descriptors: drop or split them)")
     normals = [name for name in PCD_NORMALS if name in fields]

@@ -169,6 +169,9 @@ class Stage:
     # the class a labelling stage gives its target (road, roof, ground): the config's pipeline must be
     # the one of the last such stage's class (config.PIPELINE_TARGET); None for the other stages
     labels: ClassVar[int | None] = None
+    # False: the stage keeps every working point (it computes or segments); only such stages may
+    # follow the last labelling stage (a filter after it removed labelled points)
+    narrows: ClassVar[bool] = True
     # point_data keys of this stage's result written to the output as extra dimensions (untiled
     # runs; float32, NaN for a point the stage did not see)
     writes: ClassVar[tuple[str, ...]] = ()

@@ -26,6 +26,7 @@ class HeightAboveGroundOptions(StageOptions):
 
 class HeightAboveGround(Stage):
     name = "height_above_ground"
+    narrows = False
     Options = HeightAboveGroundOptions
     requires = (GROUND_SURFACE,)
     provides = ("height_above_ground",)

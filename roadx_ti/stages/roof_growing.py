@@ -98,6 +98,7 @@ class RoofGrowingOptions(StageOptions):
 
 class RoofGrowing(Stage):
     name = "roof_growing"
+    narrows = False
     Options = RoofGrowingOptions
     requires = ("normal", "curvature", "roof_seed")
     # and 'vegetation' when its colour rule or the returns rule ran

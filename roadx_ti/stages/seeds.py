@@ -119,6 +119,7 @@ def _spacing_of(xyz) -> float:
 
 class RoofSeeds(Stage):
     name = "roof_seeds"
+    narrows = False
     Options = RoofSeedsOptions
     # and 'neighbour_distance' when it has 4 points or more; ctx.facts['knn'] for roof_growing
     provides = ("roof_seed", "normal", "curvature")
