@@ -157,7 +157,18 @@ def _setup_logging(quiet: bool) -> None:
         library.propagate = False
 
 
+RESULT_COMMANDS = ("eval", "info")      # the commands whose results are their standard output
+
+
 def main(argv: list[str] | None = None) -> int:
+    if sys.stderr is None:
+        # '2>&-': the logs have nowhere to go, the run goes on (a write to None failed after the work)
+        sys.stderr = open(os.devnull, "w")
+    if sys.stdout is None:
+        if argv is None and len(sys.argv) > 1 and sys.argv[1] in RESULT_COMMANDS:
+            print(f"roadx_ti: {sys.argv[1]}: standard output is closed; its results would be lost", file=sys.stderr)
+            return EXIT_USAGE
+        sys.stdout = open(os.devnull, "w")
     for stream in (sys.stdout, sys.stderr):
         # a name the terminal's encoding cannot show (PYTHONIOENCODING=ascii, a non-UTF-8 locale) is
         # escaped, not an 'unexpected error: UnicodeEncodeError' after the work was done
@@ -208,6 +219,11 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:   # a case nobody foresaw: one line (ROADX_TI_TRACEBACK=1 shows where)
         if _RECEIVED:          # a signal raised inside a library callback, which wrapped it
             return _stopped_by(_RECEIVED[0])
+        if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            # a full disk or quota (the outputs' own writes say which file; this is e.g. stdout)
+            print(f"roadx_ti: {(exc.strerror or 'no space left').lower()}"
+                  f"{f' ({shown_path(exc.filename)})' if exc.filename else ''}", file=sys.stderr)
+            return EXIT_DATA
         if isinstance(exc, OSError) and exc.errno in PATH_ERRNOS:
             # a path the system cannot take (a name over 255 bytes, a path over 4 KB, a loop of
             # links), from wherever it was first looked at: the user's mistake

@@ -466,4 +466,8 @@ def dump(cfg: RunConfig) -> str:
     pipeline's default stages), so that running the file again runs the same."""
     data = cfg.model_dump(mode="json")
     data["stages"] = [{name: options.model_dump(mode="json")} for name, options in cfg.pipeline_stages()]
+    if (data.get("input") or {}).get("paths"):
+        # absolute: run again from another folder, a relative path read another file (the copy's
+        # own folder held the earlier output of the same name, scored against itself)
+        data["input"]["paths"] = [os.path.abspath(p) for p in data["input"]["paths"]]
     return yaml.safe_dump(data, sort_keys=False)

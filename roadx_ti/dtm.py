@@ -188,7 +188,9 @@ def write_grid(path, heights: np.ndarray, t: dict, crs=None) -> dict:
     if crs is None and suffix != ".npy":
         log.warning("%s: the input has no CRS, so the DTM carries none", path)
     heights = np.asarray(heights)
-    t = dict(t, valid_cells=int(np.isfinite(heights).sum()))
+    # the heights are world heights: the cloth's local z offset is in them already (the .npy's
+    # sidecar carried it, 20 m untiled and 0 tiled for the same heights)
+    t = {k: v for k, v in t.items() if k != "z_offset"} | {"valid_cells": int(np.isfinite(heights).sum())}
     if suffix == ".npy":
         with atomic_output(path) as tmp:
             np.save(tmp, heights.astype(np.float32))

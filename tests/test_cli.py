@@ -307,3 +307,42 @@ def test_eval_of_files_without_points_says_so(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout)["kappa"] is None
     assert "e.las and e.las hold no points; every measure is null" in proc.stderr
+
+
+def test_closed_streams_and_a_full_disk(tmp_path):
+    """stderr closed ('2>&-'): the run goes on (its banner write failed after the work, and the
+    error went to stdout); stdout closed for a command whose results are its output: exit 2 in one
+    line (exit 0, nothing); a full stdout (/dev/full): one line, exit 1 (it was 'unexpected error')."""
+    import shlex
+    src = _tiny_las(tmp_path / "g.las")
+    cli = " ".join(shlex.quote(str(a)) for a in (sys.executable, "-m", "roadx_ti"))
+    ground = shlex.quote(str(REPO / "configs" / "ground.yaml"))
+    proc = subprocess.run(["bash", "-c", f"{cli} run {ground} --input g.las --output o.laz --backend cpu 2>&-"],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert proc.returncode == 0 and proc.stdout == "" and (tmp_path / "o.laz").is_file(), proc.stdout
+    proc = subprocess.run(["bash", "-c", f"{cli} info g.las >&-"], capture_output=True, text=True, cwd=tmp_path,
+                          timeout=120)
+    assert proc.returncode == 2 and "standard output is closed" in proc.stderr, proc.stderr
+    if Path("/dev/full").exists():
+        proc = subprocess.run(["bash", "-c", f"{cli} info g.las > /dev/full"], capture_output=True, text=True,
+                              cwd=tmp_path, timeout=120)
+        assert proc.returncode == 1 and proc.stderr.strip() == "roadx_ti: no space left on device", proc.stderr
+
+
+def test_config_copy_names_the_input_absolutely_and_tiled_summary_has_the_legend(tmp_path):
+    """The written config names its input by absolute path (run again from its own folder, a relative
+    'g.las' read another file); a tiled run's summary carries the backend, the roadx_label legend and
+    the stages summed over the tiles, as the untiled one does; a .npy DTM's sidecar has no z_offset
+    (its heights are world heights: the field said 20 m untiled and 0 tiled)."""
+    import yaml
+    src = _tiny_las(tmp_path / "g.las")
+    proc = run_cli("run", str(REPO / "configs" / "ground.yaml"), "--input", "g.las", "--output", "out/t.laz",
+                   "--tile-size", "10", "--backend", "cpu", "--quiet", "--set", "output.dtm=out/t.npy", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    written = yaml.safe_load((tmp_path / "out" / "t.config.yaml").read_text())
+    assert written["input"]["paths"] == [str(src.resolve())]
+    summary = json.loads((tmp_path / "out" / "t.summary.json").read_text())
+    assert summary["backend"] == "cpu" and summary["roadx_label"] == {"0": "reached the last stage",
+                                                                      "1": "removed by cloth_ground"}
+    assert [s["stage"] for s in summary["stages"]] == ["cloth_ground"] and summary["stages"][0]["points_in"] >= 400
+    assert "z_offset" not in json.loads((tmp_path / "out" / "t.json").read_text())

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from roadx_ti.quiet_logs import FirstOfEachWarning
+from roadx_ti.result_dims import DECIDED_BY
 from roadx_ti.tiling.catalogs import LAS_SUFFIXES, catalog, check_compatible
 from roadx_ti.tiling.cluster import _DaskSession
 from roadx_ti.tiling.executors import backend_ready, make_jobs, run_in_process, run_on_dask
@@ -52,6 +53,31 @@ class _Progress:
         if self.bar is not None:
             self.bar.close()
 
+
+
+def _stages_over_tiles(results: dict) -> list:
+    """Each stage's points in / out and seconds summed over the tiles (the untiled summary's
+    'stages'; a tile's counts include its buffer points, so the sums count those twice)."""
+    out = []
+    for result in results.values():
+        for i, row in enumerate(result.stages):
+            if i == len(out):
+                out.append({"stage": row["stage"], "index": i + 1, "points_in": 0, "points_out": 0, "seconds": 0.0,
+                            "note": "summed over the tiles, buffer points included"})
+            for key in ("points_in", "points_out", "seconds"):
+                out[i][key] += row[key]
+    for row in out:
+        row["seconds"] = round(row["seconds"], 4)
+    return out
+
+
+def _backend_name(cfg, executor: str) -> str:
+    """The arch the tiles ran on: this process's for in-process tiles; workers start their own
+    (CPU unless the config names a backend)."""
+    if executor == "in-process":
+        from roadx_ti.backend import current_arch
+        return current_arch() or cfg.backend
+    return "cpu" if cfg.backend == "auto" else cfg.backend
 
 def memory_tile_size(cfg, files, survey: dict, buffer: float, workers, scheduler) -> float:
     """The default core tile edge (m): the largest whose window fits the memory each tile may use
@@ -273,7 +299,11 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
         "inputs": [{"path": f.path, "points": f.count, "bounds": list(f.bounds)} for f in files],
         "outputs": [str(o) for o, _ in outputs], "points": total_points, "points_written": written,
         "tiling": plan.describe() | {"buffer_from_stages": reaches},
+        "backend": _backend_name(cfg, executor),
+        DECIDED_BY: {"0": "reached the last stage"} | {str(i): f"removed by {name}"
+                                                       for i, (name, _) in enumerate(cfg.pipeline_stages(), 1)},
         "estimates": survey,
+        "stages": _stages_over_tiles(results),
         "split": split.describe(),
         "segments": segments,
         "target_class": target, "target_points": int(merge.class_counts[target]),
