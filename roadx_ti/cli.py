@@ -717,6 +717,11 @@ def _run_tiled(cfg, out: Path, args) -> int:
         Path(tmp).write_text(config.dump(cfg))
     log.info("tiled run: %d tiles, %d points written", len(summary.get("tiles", [])),
              summary.get("points_written", 0))
+    if summary.get("accuracy"):
+        acc = summary["accuracy"]       # as the untiled run says it
+        log.info("accuracy vs classes %s: type I %s, type II %s, total %s, kappa %s", summary.get("truth_classes"),
+                 *(("-" if acc.get(k) is None else f"{100 * acc[k]:.2f} %") for k in ("type1", "type2", "total")),
+                 "-" if acc.get("kappa") is None else f"{acc['kappa']:.4f}")
     return EXIT_OK
 
 
@@ -795,6 +800,9 @@ def cmd_eval(args) -> int:
     pred_classes = _classes(args.pred_classes, "--pred-classes") if args.pred_classes is not None else truth_classes
     for given, flag in ((args.pred, "--pred"), (args.truth, "--truth")):
         if not Path(given).exists():
+            import glob
+            if glob.has_magic(given):
+                raise UsageError(f"{flag} {given}: a pattern; eval compares two files point by point (give one file)")
             raise UsageError(f"{flag} {given}: no such file")
         if Path(given).is_dir():
             raise UsageError(f"{flag} {given}: is a folder; eval compares two files point by point")

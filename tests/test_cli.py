@@ -193,6 +193,8 @@ def test_command_line_mistakes_are_one_line(tmp_path, args, said):
      "--truth-classes given twice; give it once"),                                 # scored class 2 alone
     (["synth", "--kind", "uav-road", "--points", "2000", "--seed", "1", "--seed", "2", "-o", "x.laz"],
      "--seed given twice"),
+    (["eval", "--pred", "a_file", "--truth", "tiles/*.laz", "--truth-classes", "11"],
+     "--truth tiles/*.laz: a pattern; eval compares two files point by point"),    # 'no such file'
 ])
 def test_mistakes_in_the_other_commands_are_one_line_before_any_work(tmp_path, args, said):
     """The bench, accuracy and synth options (and rules over several config keys) checked before any

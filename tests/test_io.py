@@ -1067,3 +1067,17 @@ def test_valid_names_and_layouts_still_read(tmp_path, caplog):
             "WIDTH 3\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA binary\n").encode()
     (tmp_path / "pad.pcd").write_bytes(head + body)
     assert io.read(tmp_path / "pad.pcd").intensity.tolist() == [7, 8, 9]
+
+
+
+def test_info_of_other_formats_sees_their_nir_and_names_the_newer_classes(tmp_path):
+    """A PLY with a nir column: info says NIR present (it said absent, though io.read reads it as
+    NIR); classes 19-22 carry LAS 1.4 R15's names (they were 'reserved')."""
+    world = np.column_stack([np.arange(30.0), np.zeros(30), np.zeros(30)])
+    cloud = Cloud.from_world(world, nir=np.arange(30, dtype=np.uint16) * 100,
+                             classification=np.array([19, 20] * 15, np.uint8))
+    io.write(tmp_path / "n.ply", cloud)
+    described = io.info(tmp_path / "n.ply")
+    assert described["fields"]["nir"]["present"] is True
+    names = {row["class"]: row["name"] for row in described["classes"]}
+    assert names == {19: "overhead structure", 20: "ignored ground"}

@@ -197,7 +197,7 @@ def info(path) -> dict:
     survey = Survey()
     returns = cloud.returns
     survey.add(world[:, :2], {"rgb": cloud.rgb, "intensity": cloud.intensity,
-                              "nir": cloud.attributes.get("nir"),
+                              "nir": cloud.nir if cloud.nir is not None else cloud.attributes.get("nir"),
                               "return_number": None if returns is None else returns[:, 0],
                               "number_of_returns": None if returns is None else returns[:, 1]})
     return {

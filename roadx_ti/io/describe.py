@@ -15,7 +15,8 @@ ASPRS_CLASSES = {0: "never classified", 1: "unclassified", 2: "ground", 3: "low 
                  4: "medium vegetation", 5: "high vegetation", 6: "building", 7: "low point (noise)",
                  8: "model key-point", 9: "water", 10: "rail", 11: "road surface", 12: "overlap",
                  13: "wire guard", 14: "wire conductor", 15: "transmission tower", 16: "wire connector",
-                 17: "bridge deck", 18: "high noise"}
+                 17: "bridge deck", 18: "high noise", 19: "overhead structure", 20: "ignored ground",
+                 21: "snow", 22: "temporal exclusion"}       # LAS 1.4 R15
 FIELDS = ("rgb", "intensity", "nir", "return_number", "number_of_returns")
 
 
