@@ -2,6 +2,7 @@
 and each point takes its labels from its core tile, in file order."""
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -163,11 +164,35 @@ def _write_generic(out: Path, file_ids, merge: _Merge, processed_only: bool) -> 
         merge.check_file(k, cloud.n)
         clouds.append(cloud)
     cloud = concat_clouds(clouds, merge.plan.read_origin)
+    records = _records_together(clouds)
+    if records is not None:
+        # every LAS field as a column and the exact coordinates, as an untiled run writes them
+        # (the concatenation held x, y, z as float32 offsets and the common columns only)
+        cloud = replace(cloud, las=records)
     cls, dec, seg, proc = (np.concatenate(parts) for parts in zip(*(label[:4] for label in labels)))
     extra = {name: np.concatenate([label[4][name] for label in labels]) for name in merge.extra_names}
     io.write(out, cloud, classification=cls, extra_dims=result_dims(dec, seg, extra),
              subset=proc if processed_only else None)
     return int(proc.sum()) if processed_only else cloud.n
+
+
+def _records_together(clouds):
+    """One LasData of the clouds' LAS records, in order, when every cloud has them with one point
+    format, scales and offsets (what a merged LAS output needs too); else None."""
+    import copy
+
+    import laspy
+
+    las = [c.las for c in clouds]
+    if not las or any(x is None for x in las):
+        return None
+    first = las[0].header
+    if any(x.header.point_format != first.point_format or not np.array_equal(x.header.scales, first.scales)
+           or not np.array_equal(x.header.offsets, first.offsets) for x in las[1:]):
+        return None
+    array = np.concatenate([x.points.array for x in las]) if len(las) > 1 else las[0].points.array
+    return laspy.LasData(copy.deepcopy(first), laspy.ScaleAwarePointRecord(array, first.point_format, first.scales,
+                                                                           first.offsets))
 
 
 def write_outputs(plan, results, files, outputs: list[tuple[Path, list[int]]], *, processed_only: bool,
