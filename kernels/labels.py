@@ -19,7 +19,7 @@ then unites regions on the device with the same union-find over an edge list.
 import numpy as np
 from .taichi_compat import ti
 
-from .common import index_array, as_ndarray, is_ndarray, kernel_array, like_input, ndarray, output_array, to_numpy
+from .common import as_ndarray, index_array, is_ndarray, kernel_array, like_input, ndarray, output_array, to_numpy
 
 # Verification rounds never exceed a handful; this bound only guards against a logic error.
 _MAX_ROUNDS = 64

@@ -25,7 +25,7 @@ rounds, one region at a time, for tests.
 
 import numpy as np
 
-from .common import index_array, host_memory_backend, is_ndarray, kernel_array, length, like_input, output_array, to_numpy
+from .common import host_memory_backend, index_array, is_ndarray, kernel_array, length, like_input, output_array, to_numpy
 from .taichi_compat import ti
 
 MAX_ROW = 33          # a point and at most 32 neighbours

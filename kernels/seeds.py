@@ -62,7 +62,7 @@ import math
 import numpy as np
 from .taichi_compat import ti
 
-from .common import (index_array, INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, is_ndarray, kernel_array, length,
+from .common import (INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, index_array, is_ndarray, kernel_array, length,
                      like_input, ndarray, output_array, to_numpy, zeros)
 
 FOOTPRINT_CELLS_PER_POINT = 4

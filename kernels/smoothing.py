@@ -8,7 +8,7 @@ result is bit-identical from run to run (no atomics).
 import numpy as np
 from .taichi_compat import ti
 
-from .common import index_array, as_ndarray, is_ndarray, kernel_array, like_input, ndarray, to_numpy
+from .common import as_ndarray, index_array, is_ndarray, like_input, ndarray, to_numpy
 
 
 @ti.kernel

@@ -54,7 +54,6 @@ class _Progress:
             self.bar.close()
 
 
-
 def _stages_over_tiles(results: dict) -> list:
     """Each stage's points in / out and seconds summed over the tiles (the untiled summary's
     'stages'; a tile's counts include its buffer points, so the sums count those twice)."""
@@ -78,6 +77,7 @@ def _backend_name(cfg, executor: str) -> str:
         from roadx_ti.backend import current_arch
         return current_arch() or cfg.backend
     return "cpu" if cfg.backend == "auto" else cfg.backend
+
 
 def memory_tile_size(cfg, files, survey: dict, buffer: float, workers, scheduler) -> float:
     """The default core tile edge (m): the largest whose window fits the memory each tile may use
