@@ -101,8 +101,9 @@ def index_array(indices, points=None):
         n = len(a) if points is None else int(points)
         if len(a) != n:
             raise ValueError(f"neighbour indices have {len(a)} rows for {n} points")
-        if a.size and (int(a.min()) < -1 or int(a.max()) >= n):
-            bad = int(a.min()) if int(a.min()) < -1 else int(a.max())
+        low, high = (int(a.min()), int(a.max())) if a.size else (-1, -1)
+        if low < -1 or high >= n:
+            bad = low if low < -1 else high
             raise ValueError(f"neighbour index {bad} is outside the cloud of {n} points (-1 for none, else 0..{n - 1})")
     return kernel_array(indices, np.int32)
 

@@ -88,7 +88,7 @@ def runtime_program():
     return ti.lang.impl.get_runtime()
 
 
-_FAST_MATH_SAID: list = []     # the fast_math warning is said once per process
+_fast_math_said = False     # the fast_math warning is said once per process
 
 
 class RuntimeSettingsError(RuntimeError):
@@ -108,10 +108,11 @@ def current_arch():
         raise RuntimeSettingsError(f"the Taichi runtime was started with default_fp={cfg.default_fp} and "
                                    f"default_ip={cfg.default_ip}; roadx_ti's kernels need ti.f32 and ti.i32 "
                                    "(the defaults of ti.init)")
-    if cfg.fast_math and not _FAST_MATH_SAID:
+    global _fast_math_said
+    if cfg.fast_math and not _fast_math_said:
         # ti.init's default: LLVM may contract and reorder float expressions, so features and
         # labels differ in the last bits from roadx_ti's own runs (which start Taichi without it)
-        _FAST_MATH_SAID.append(True)
+        _fast_math_said = True
         import logging
         logging.getLogger("roadx_ti").warning(
             "the Taichi runtime runs with fast_math on (ti.init's default); roadx_ti's own runs use "

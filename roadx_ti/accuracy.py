@@ -1388,8 +1388,9 @@ def _merged(paths):
     """One cloud of adjacent files (a common local origin: the floor of their lowest corner)."""
     from roadx_ti import io
     from roadx_ti.tiling import catalog, concat_clouds
+    from roadx_ti.tiling.plan import with_points
 
-    files = [f for f in catalog(paths) if f.count] or catalog(paths)
+    files = with_points(catalog(paths))
     origin = np.floor([min(f.bounds[0] for f in files), min(f.bounds[1] for f in files),
                        min(f.z_range[0] for f in files)])
     return concat_clouds([io.read(f.path, origin=origin) for f in files], origin)

@@ -592,16 +592,10 @@ def _cmd_run(args) -> int:
 def _survey_units(cloud, crs):
     """The metres per unit of the cloud's CRS ``crs`` (roadx_ti.units), logged when not metres; a
     cloud in longitude / latitude degrees stops the run with one line."""
-    if units.is_degrees(crs, cloud):
-        raise DataError(f"{cloud.source}: coordinates are longitude / latitude degrees ({crs.to_string()}); "
-                        "the stages' lengths are metres: reproject it to a projected CRS first, e.g. pdal "
-                        "translate IN OUT reprojection --filters.reprojection.out_srs=EPSG:<UTM zone>")
     if crs is not None and crs.is_geographic and cloud.n:
-        # a geographic CRS record over projected coordinates (x 770,498, y 6,277,498 as degrees): the
-        # DTM and the outputs would be georeferenced as impossible longitudes / latitudes
-        raise DataError(f"{cloud.source}: its CRS is geographic ({crs.to_string()}), but its coordinates are not "
-                        "longitude / latitude degrees (beyond +-360 / +-90): the CRS record is wrong; set the "
-                        "right one first, e.g. pdal translate IN OUT --writers.las.a_srs=EPSG:<code>")
+        import numpy as np
+        reach = np.abs(cloud.xyz[:, :2].astype(np.float64) + cloud.origin[:2]).max(axis=0)
+        raise DataError(f"{cloud.source}: {units.geographic_problem(crs, float(reach[0]), float(reach[1]))}")
     if crs is None and units.looks_like_degrees(cloud):
         log.warning("%s: no CRS in the file, and x / y read as longitude / latitude degrees (the stages' lengths "
                     "are metres: every spacing would read 0); if so, reproject it to a projected CRS first",

@@ -42,7 +42,7 @@ LENGTH_DIMS = ("height_above_ground",)
 
 def metre_factors(crs) -> Factors:
     """Factors of ``crs`` (a rasterio CRS or None; None, geographic or unreadable: METRES, the
-    caller checks degrees with ``check_projected``)."""
+    caller checks degrees with ``geographic_problem``)."""
     if crs is None or not crs.is_projected:
         return METRES
     name, horizontal = crs.linear_units_factor
@@ -60,12 +60,20 @@ def metre_factors(crs) -> Factors:
     return Factors(horizontal, vertical, str(name))
 
 
-def is_degrees(crs, cloud) -> bool:
-    """True when ``crs`` is geographic and the cloud's coordinates are longitudes / latitudes."""
-    if crs is None or not crs.is_geographic or cloud.n == 0:
-        return False
-    world = cloud.xyz[:, :2].astype(np.float64) + cloud.origin[:2]
-    return bool(np.all(np.abs(world[:, 0]) <= 360.0) and np.all(np.abs(world[:, 1]) <= 90.0))
+def geographic_problem(crs, lon_reach: float, lat_reach: float) -> str | None:
+    """Why a survey whose CRS ``crs`` is geographic cannot run, its x / y reaching ``lon_reach`` /
+    ``lat_reach`` (largest absolute values): degrees (the stages' lengths are metres), or a
+    geographic record over projected coordinates (a DTM of impossible longitudes / latitudes);
+    None for a projected CRS or none. One text for the untiled run and the catalog check."""
+    if crs is None or not crs.is_geographic:
+        return None
+    if lon_reach <= 360.0 and lat_reach <= 90.0:
+        return (f"coordinates are longitude / latitude degrees ({crs.to_string()}); the stages' lengths are "
+                "metres: reproject it to a projected CRS first, e.g. pdal translate IN OUT reprojection "
+                "--filters.reprojection.out_srs=EPSG:<UTM zone>")
+    return (f"its CRS is geographic ({crs.to_string()}), but its coordinates are not longitude / latitude degrees "
+            "(beyond +-360 / +-90): the CRS record is wrong; set the right one first, e.g. pdal translate IN OUT "
+            "--writers.las.a_srs=EPSG:<code>")
 
 
 def looks_like_degrees(cloud) -> bool:

@@ -21,7 +21,7 @@ FOOT_US = 1200.0 / 3937.0
     ("EPSG:2263+6360", FOOT_US, FOOT_US),          # + NAVD88 height (ftUS)
     ("EPSG:26918+6360", 1.0, FOOT_US),             # UTM 18N in metres, NAVD88 heights in feet
     ("EPSG:2154+5720", 1.0, 1.0),                  # Lambert-93 + NGF-IGN69 (the IGN tiles)
-    ("EPSG:4326", 1.0, 1.0),                       # geographic: no factor (is_degrees decides)
+    ("EPSG:4326", 1.0, 1.0),                       # geographic: no factor (geographic_problem decides)
 ])
 def test_metre_factors_read_the_crs(code, horizontal, vertical):
     f = units.metre_factors(CRS.from_user_input(code))

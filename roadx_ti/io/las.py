@@ -169,8 +169,8 @@ def _check_extra_names(path, point_format: int, names: list) -> None:
     """Extra Bytes names that a reader cannot tell from a standard dimension (any case: 'x' is
     laspy's scaled X, 'classification' a legacy format's bit field) or from another extra
     dimension: one line naming it (an 'x' ran the whole pipeline and failed at the write)."""
-    standard = {n.lower(): n for n in ("x", "y", "z", *laspy.PointFormat(point_format).dimension_names,
-                                       *laspy.PointFormat(point_format).dtype().names)}
+    fmt = laspy.PointFormat(point_format)
+    standard = {n.lower(): n for n in ("x", "y", "z", *fmt.dimension_names, *fmt.dtype().names)}
     seen = set()
     for raw in names:
         name = raw.decode("utf-8", "backslashreplace")      # distinct bytes, distinct names ('α', 'β')

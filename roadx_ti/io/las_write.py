@@ -19,7 +19,7 @@ import numpy as np
 
 from ..cloud import Cloud
 from .atomic import InputError, atomic_output, fail
-from .las import CHUNK_POINTS, EXTRA_DIM_TYPES, MAX_POINTS, NEW_FILE_SCALE, WIDE_CLASS_FORMAT, _too_many, is_copc, \
+from .las import CHUNK_POINTS, EVLR_HEADER, EXTRA_DIM_TYPES, HEADER_SIZES, MAX_POINTS, NEW_FILE_SCALE, WIDE_CLASS_FORMAT, _too_many, is_copc, \
     warn_once
 
 log = logging.getLogger(__name__)
@@ -310,7 +310,7 @@ def write_las(path, cloud: Cloud, *, classification=None, extra_dims=None, subse
         with open(tmp, "wb") as f:
             las.write(f, do_compress=compress)
         if cloud.las is not None and cloud.source:
-            keep_waveform_record(path, tmp, [cloud.source])
+            keep_waveform_record(path, tmp, waveform_sources([cloud.source]))
         check_written(path, tmp, cloud.source)
 
 
@@ -363,25 +363,25 @@ WAVEFORM_INTERNAL = 0x2     # global encoding bit 1: the waveform data packets a
 WAVEFORM_POINTER = 227      # header byte of the start of the waveform data packet record (LAS 1.3+)
 
 
-def keep_waveform_record(path, tmp, sources) -> None:
+def keep_waveform_record(path, tmp, holders: list) -> None:
     """The written ``tmp``'s pointer to its waveform data packet record, which the header copied
     from the input pointed into the input's layout (inside the output's point records once the
     result dimensions widened them): LAS 1.4 points to the output's own waveform EVLR; LAS 1.3
     (laspy leaves the record behind) gets the input's record copied after its points. Several
     inputs with packets of their own cannot share one record: the bit and pointer are cleared,
-    with a warning (the points' wave packet fields are kept as read)."""
+    with a warning (the points' wave packet fields are kept as read). ``holders``: the inputs'
+    waveform_sources."""
     import struct
 
     with open(tmp, "rb") as f:
-        head = f.read(375)
-    if len(head) < 235 or head[25] < 3:
+        head = f.read(HEADER_SIZES[4])
+    if len(head) < HEADER_SIZES[3] or head[25] < 3:
         return
     encoding = struct.unpack_from("<H", head, 6)[0]
     pointer = struct.unpack_from("<Q", head, WAVEFORM_POINTER)[0]
     if not encoding & WAVEFORM_INTERNAL and pointer == 0:
         return
     where = 0
-    holders = waveform_sources(sources)
     if not encoding & WAVEFORM_INTERNAL:
         pass                         # external or no packets: a stale pointer is cleared below
     elif len(holders) > 1:
@@ -420,19 +420,19 @@ def _waveform_evlr(tmp, head: bytes) -> int:
     import os
     import struct
 
-    start, count = struct.unpack_from("<QI", head, 235)
+    start, count = struct.unpack_from("<QI", head, HEADER_SIZES[3])   # the EVLRs' start and count follow the 1.3 header
     size = os.path.getsize(tmp)
     with open(tmp, "rb") as f:
         at = start
         for _ in range(count):
             f.seek(at)
-            raw = f.read(60)
-            if len(raw) < 60:
+            raw = f.read(EVLR_HEADER)
+            if len(raw) < EVLR_HEADER:
                 return 0
             user, record, length = raw[2:18].rstrip(b"\0"), *struct.unpack_from("<HQ", raw, 18)
             if user == b"LASF_Spec" and record == 65535:
                 return at
-            at += 60 + length
+            at += EVLR_HEADER + length
             if at > size:
                 return 0
     return 0
@@ -446,16 +446,16 @@ def _append_waveform_record(tmp, source) -> int:
     try:
         size = os.path.getsize(source)
         with open(source, "rb") as f:
-            head = f.read(235)
-            if len(head) < 235 or not struct.unpack_from("<H", head, 6)[0] & WAVEFORM_INTERNAL:
+            head = f.read(HEADER_SIZES[3])
+            if len(head) < HEADER_SIZES[3] or not struct.unpack_from("<H", head, 6)[0] & WAVEFORM_INTERNAL:
                 return 0
             start = struct.unpack_from("<Q", head, WAVEFORM_POINTER)[0]
-            if not 0 < start <= size - 60:
+            if not 0 < start <= size - EVLR_HEADER:
                 return 0
             f.seek(start)
-            record = f.read(60)
+            record = f.read(EVLR_HEADER)
             length = struct.unpack_from("<Q", record, 20)[0]
-            if start + 60 + length > size:
+            if start + EVLR_HEADER + length > size:
                 return 0
             record += f.read(length)
     except OSError:
@@ -538,6 +538,7 @@ def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_
     written = 0
     packets = {}
     template = template_source(sources)
+    holders = waveform_sources(sources)       # the inputs with waveform records of their own
     with atomic_output(path) as tmp:
         writer = None
         try:
@@ -564,7 +565,7 @@ def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_
                 if on_file is not None:
                     on_file(i, seen)
             evlrs = first.header.evlrs
-            if evlrs and len(waveform_sources(sources)) > 1:
+            if evlrs and len(holders) > 1:
                 # several files' waveform records: none is the merged points' (keep_waveform_record says so)
                 evlrs = laspy.vlrs.vlrlist.VLRList([v for v in evlrs if not (v.user_id == "LASF_Spec"
                                                                              and v.record_id == 65535)])
@@ -575,6 +576,6 @@ def write_las_stream(path, sources, labels, *, empty, chunk_points: int = CHUNK_
         finally:
             if writer is not None:
                 writer.close()
-        keep_waveform_record(path, tmp, sources)
+        keep_waveform_record(path, tmp, holders)
         check_written(path, tmp)
     return written

@@ -145,19 +145,12 @@ def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> No
             crs[f.path] = of_header(reader.header)
             grids[f.path] = (tuple(float(v) for v in reader.header.scales),
                              tuple(float(v) for v in reader.header.offsets))
-        if crs[f.path] is not None and crs[f.path].is_geographic and f.count:
-            # the untiled run's rules on the header box: degrees, or a geographic record over
-            # projected coordinates (both ran silently in tiles, their DTM georeferenced as degrees)
-            lon, lat = max(abs(f.bounds[0]), abs(f.bounds[2])), max(abs(f.bounds[1]), abs(f.bounds[3]))
-            if lon <= 360.0 and lat <= 90.0:
-                raise io.InputError(f"{f.path}: coordinates are longitude / latitude degrees "
-                                    f"({crs[f.path].to_string()}); the stages' lengths are metres: reproject it to "
-                                    "a projected CRS first, e.g. pdal translate IN OUT reprojection "
-                                    "--filters.reprojection.out_srs=EPSG:<UTM zone>")
-            raise io.InputError(f"{f.path}: its CRS is geographic ({crs[f.path].to_string()}), but its coordinates "
-                                "are not longitude / latitude degrees (beyond +-360 / +-90): the CRS record is "
-                                "wrong; set the right one first, e.g. pdal translate IN OUT "
-                                "--writers.las.a_srs=EPSG:<code>")
+        problem = units.geographic_problem(crs[f.path], max(abs(f.bounds[0]), abs(f.bounds[2])),
+                                           max(abs(f.bounds[1]), abs(f.bounds[3]))) if f.count else None
+        if problem:
+            # the untiled run's rule on the header box (degrees and wrong geographic records ran
+            # silently in tiles, their DTM georeferenced as degrees)
+            raise io.InputError(f"{f.path}: {problem}")
         factors = units.metre_factors(crs[f.path])
         if not factors.metric:
             # windows and buffers are planned in the files' units (a whole-file run converts)

@@ -277,10 +277,9 @@ def plan_tiles(files: list[CatalogFile], tile_size: float, buffer: float, scan=N
     cells its points occupy): stray points far off stretch a header box over thousands of empty
     tiles. Nothing is allocated per grid cell. ``max_tiles``: raise TooManyTiles when there are more
     occupied tiles."""
-    xmin = min(f.bounds[0] for f in with_points(files))
-    ymin = min(f.bounds[1] for f in with_points(files))
-    xmax = max(f.bounds[2] for f in with_points(files))
-    ymax = max(f.bounds[3] for f in with_points(files))
+    held = with_points(files)
+    xmin, ymin = min(f.bounds[0] for f in held), min(f.bounds[1] for f in held)
+    xmax, ymax = max(f.bounds[2] for f in held), max(f.bounds[3] for f in held)
     if not all(math.isfinite(v) for v in (xmin, ymin, xmax, ymax)):
         raise ValueError("the catalog's header bounds are not finite; fix the headers (e.g. pdal translate)")
     read_origin = catalog_origin(files)
