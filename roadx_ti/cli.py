@@ -379,10 +379,12 @@ def _warn_stale_sidecars(cfg, out: Path) -> None:
 def _check_distinct_outputs(out: Path, dtm: Path) -> None:
     """The DTM and its sidecars (x.json of x.npy, x.prj of x.asc) must not be the run's other files:
     output.dtm=r.summary.npy would write the DTM's placement over the run's summary."""
+    from roadx_ti.io.atomic import same_file
+
     mine = {"output": out, **_output_paths(out)}
     for name, path in mine.items():
         for other in _dtm_files(dtm).values():
-            if Path(os.path.abspath(path)) == Path(os.path.abspath(other)):
+            if same_file(path, other):
                 raise UsageError(f"output.dtm = {dtm}: its file {other} would be the run's {name} file; "
                                  "give the DTM another name")
 
@@ -523,6 +525,8 @@ def _cmd_run(args) -> int:
         truth = class_mask(cloud.classification, cfg.truth_classes)
         if not truth.any():
             truth = None
+            log.info("no accuracy: no input point carries class %s (evaluate.truth_classes)",
+                     ", ".join(str(c) for c in cfg.truth_classes))
     ctx = StageContext(seed=cfg.seed, log=log)
     stages = pipelines.build_stages(stage_specs)
     progress = _progress_bar(len(stages), args.quiet)

@@ -1196,6 +1196,17 @@ def case_dtm_named_over_the_summary(d):
                 message="would be the run's summary file")
 
 
+def case_dtm_over_the_summary_through_a_linked_folder(d):
+    """The same through a link to the output's folder: the check compared path strings, and the
+    DTM's placement replaced the run's summary."""
+    src = write_las(d / "in" / "ground.laz", bumpy_ground(2000))
+    (d / "out").mkdir(parents=True, exist_ok=True)
+    (d / "alias").symlink_to(d / "out", target_is_directory=True)
+    return _run(CONFIGS / "ground.yaml", d, src, code=2,
+                extra=["--set", f"output.dtm={d / 'alias' / 'result.summary.npy'}"],
+                message="would be the run's summary file")
+
+
 def case_catalog_extra_dimensions_described_apart_merged(d):
     """Two files of one point format whose extra dimension 'amp' (float32) is described apart:
     laspy refuses to write them into one file, so the run says so before any tile."""

@@ -348,3 +348,17 @@ def test_config_copy_names_the_input_absolutely_and_tiled_summary_has_the_legend
                                                                       "1": "removed by cloth_ground"}
     assert [s["stage"] for s in summary["stages"]] == ["cloth_ground"] and summary["stages"][0]["points_in"] >= 400
     assert "z_offset" not in json.loads((tmp_path / "out" / "t.json").read_text())
+
+
+def test_no_accuracy_without_truth_class_points_says_so(tmp_path):
+    """A truth class no input point carries: the run gives no accuracy, and says why in its log
+    (it had said nothing, so a mistyped class read as a missing feature)."""
+    from cli_helpers import bumpy_ground, write_las, write_tiny_config
+
+    src = write_las(tmp_path / "ground.laz", bumpy_ground(500))
+    out = tmp_path / "out.laz"
+    proc = run_cli("run", str(write_tiny_config(tmp_path)), "--input", str(src), "--output", str(out),
+                   "--backend", "cpu", "--set", "evaluate.truth_classes=[17]")
+    assert proc.returncode == 0, proc.stderr
+    assert "no accuracy: no input point carries class 17" in proc.stderr
+    assert "accuracy" not in json.loads(out.with_suffix(".summary.json").read_text())

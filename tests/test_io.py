@@ -282,6 +282,17 @@ def test_subset_writes_only_those_points(tmp_path):
         assert np.array_equal(np.asarray(back.segment_id), seg[mask])
 
 
+
+@pytest.mark.parametrize("subset, message", [([-1], r"\[0, 300\)"), ([300], r"\[0, 300\)"),
+                                             (np.ones(299, bool), "one value per point"),
+                                             (np.array([0.0, 1.0]), "point indices")])
+def test_subset_outside_the_cloud_is_refused(tmp_path, subset, message):
+    """numpy would read index -1 as the last point and a float array as whatever it converts to."""
+    cloud, _ = synthetic_cloud(300)
+    with pytest.raises(ValueError, match=message):
+        io.write(tmp_path / "sub.laz", cloud, subset=subset)
+    assert not (tmp_path / "sub.laz").exists()
+
 def test_all_zero_colour_is_no_colour(tmp_path):
     world = np.random.default_rng(2).uniform(0, 10, (50, 3))
     src = tmp_path / "zero.las"
