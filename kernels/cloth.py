@@ -38,12 +38,13 @@ Numpy points are passed to the kernels in place on the CPU (no copy of millions 
 
 from dataclasses import dataclass
 import math
+import os
 
 import numpy as np
 from .taichi_compat import cpu_threads, ti
 
-from .common import (as_ndarray, cpu_block_dim, f32_order_key, f32_from_order_key, host_memory_backend,
-                     kernel_array, length, ndarray, to_numpy)
+from .common import (as_ndarray, cpu_block_dim, f32_from_order_key, f32_order_key, host_memory_backend, length,
+                     ndarray, points_array, to_numpy)
 from .grid import bounding_box
 
 DAMPING = 0.01
@@ -638,7 +639,7 @@ class ClothResult:
         """z minus the bilinear cloth height under each point (float32 (n,))."""
         rows, cols = self.cloth_z.shape
         pos = as_ndarray(-self.cloth_z.reshape(-1), np.float32)
-        points = kernel_array(xyz, np.float32)
+        points = points_array(xyz)
         out = _point_output(np.float32, length(points))
         if length(points):
             _height_above(points, pos, self.x0, self.y0, self.resolution, cols, rows, out)
@@ -681,6 +682,19 @@ class LatticeTooLarge(ValueError):
                          f"{limit} particles allowed")
 
 
+# bytes per particle of the simulation's arrays, slope smoothing included (at most)
+PARTICLE_BYTES = 64
+
+
+def _memory_particles():
+    """Particles that half the machine's physical memory holds (None where the system does not say)."""
+    try:
+        total = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):
+        return None
+    return max(int(total) // (2 * PARTICLE_BYTES), 1) if total > 0 else None
+
+
 def _fill_i32(shape, value):
     a = ndarray(np.int32, shape)
     a.fill(value)
@@ -703,7 +717,8 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
     point (tiles of one survey pass the survey's lowest z: a cloth falling from another height
     collides at other speeds and settles differently).
     ``max_particles``: raise LatticeTooLarge, before any allocation, when the cloth over the
-    points' bounding box would hold more particles (None: only the 32-bit limit).
+    points' bounding box would hold more particles (None: as many as half the machine's memory
+    holds at PARTICLE_BYTES each; one stray point 10,000 km off had asked for 13 GB).
     """
     if not cloth_resolution > 0:
         raise ValueError("cloth_resolution must be > 0")
@@ -713,7 +728,7 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
         raise ValueError("time_step must be > 0")
     if int(iterations) < 1:
         raise ValueError("iterations must be >= 1")
-    points = kernel_array(xyz, np.float32)
+    points = points_array(xyz)
     n = length(points)
     if n == 0:
         return ClothResult(np.zeros(0, bool), np.zeros((0, 0), np.float32), 0.0, 0.0,
@@ -723,8 +738,9 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
     # grid.bounding_box: the one bounding-box kernel (a kernel of its own here cost a compile)
     lo, hi, cols, rows, x0, y0, lattice_row = _grid(*bounding_box(points), res, lattice_origin)
     cells = cols * rows
-    if max_particles is not None and cells > max_particles:
-        raise LatticeTooLarge(cols, rows, res, int(max_particles))
+    limit = _memory_particles() if max_particles is None else int(max_particles)
+    if limit is not None and cells > limit:
+        raise LatticeTooLarge(cols, rows, res, limit)
     if cells >= 2**31 - 1:
         raise LatticeTooLarge(cols, rows, res, 2**31 - 2)
 

@@ -88,6 +88,36 @@ def kernel_array(a, dtype=None):
     return arr
 
 
+# m: float32 keeps about a centimetre up to this magnitude (a spacing of 2^-6 m from 2^17 m): larger
+# coordinates given wider than float32 are world coordinates that the kernels' float32 would round
+MAX_LOCAL_COORD = float(2**17)
+
+
+def points_array(xyz, name: str = "xyz"):
+    """Points (n, 3) as a kernel argument (float32, as kernel_array), checked first: the kernels
+    read three columns unchecked (an (n, 2) array read memory past its end), and compute in float32
+    (world coordinates of a projected CRS, hundreds of kilometres, lost decimetres: subtract a
+    local origin first). Numpy input is also checked for NaN and infinity; ndarrays are the
+    caller's device arrays and are taken as they are."""
+    shape = tuple(int(v) for v in xyz.shape) if hasattr(xyz, "shape") else np.shape(xyz)
+    if len(shape) != 2 or shape[1] != 3:
+        raise ValueError(f"{name} must have shape (n, 3), got {shape}")
+    if not is_ndarray(xyz):
+        a = np.asarray(xyz)
+        if a.dtype.kind not in "fiu":
+            raise TypeError(f"{name} must hold numbers, got {a.dtype}")
+        if a.size:
+            low, high = a.min(), a.max()
+            if not (np.isfinite(low) and np.isfinite(high)):
+                raise ValueError(f"{name} holds non-finite coordinates (NaN or infinity)")
+            largest = max(abs(float(low)), abs(float(high)))
+            if a.dtype != np.float32 and largest > MAX_LOCAL_COORD:
+                raise ValueError(f"{name} reaches {largest:.6g}: the kernels compute in float32, which keeps "
+                                 f"{np.spacing(np.float32(largest)):.2g} m there; subtract a local origin first "
+                                 f"(e.g. xyz - xyz.min(axis=0))")
+    return kernel_array(xyz, np.float32)
+
+
 def index_array(indices, points=None):
     """Neighbour indices (n, k) as a kernel argument (int32, as kernel_array). Numpy indices are
     checked first, since the kernels read the points they name unchecked (an index past the

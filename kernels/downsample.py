@@ -16,7 +16,7 @@ delivery keeps the same points; the host chooses the quantisation, roadx_ti.stag
 import numpy as np
 from .taichi_compat import ti
 
-from .common import is_ndarray, ndarray
+from .common import is_ndarray, length, ndarray, points_array
 
 
 BLOCK = 1024  # outputs per thread: one 64-bit division per block, then exact integer steps
@@ -49,7 +49,8 @@ def _stride_gather(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), kept_xyz: ti.typ
 def uniform_sample(xyz, target: int):
     """Keep ``target`` of the n points by the R1 stride; returns (kept indices int32 ascending,
     kept coordinates (m, 3) float32), numpy or ndarrays like the input."""
-    n = int(xyz.shape[0])
+    points = points_array(xyz)
+    n = length(points)
     m = max(0, min(int(target), n))
     if m == 0:
         empty = (np.zeros(0, np.int32), np.zeros((0, 3), np.float32))
@@ -57,9 +58,8 @@ def uniform_sample(xyz, target: int):
     # numpy input on the CPU backend is passed in place (no copy); outputs are allocated to match
     if is_ndarray(xyz):
         kept_index, kept_xyz = ndarray(ti.i32, (m,)), ndarray(ti.f32, (m, 3))
-        _stride_gather(xyz, kept_xyz, kept_index, n, m, -(-m // BLOCK))
+        _stride_gather(points, kept_xyz, kept_index, n, m, -(-m // BLOCK))
         return kept_index, kept_xyz
-    points = np.ascontiguousarray(xyz, dtype=np.float32)
     kept_index, kept_xyz = np.empty(m, np.int32), np.empty((m, 3), np.float32)
     _stride_gather(points, kept_xyz, kept_index, n, m, -(-m // BLOCK))
     return kept_index, kept_xyz

@@ -10,7 +10,7 @@ neighbourhoods, where closed-form cubic solutions lose the small eigenvalue.
 import numpy as np
 from .taichi_compat import ti
 
-from .common import index_array, kernel_array, length, like_input, output_array
+from .common import index_array, length, like_input, output_array, points_array
 
 _JACOBI_SWEEPS = 8
 
@@ -193,7 +193,7 @@ def _check_rows(nbr, n):
 
 def _per_point(kernel, xyz, knn_indices, *args):
     """float32 (n,) from ``kernel(points, rows, *args, out)`` over the points and their kNN rows."""
-    pts = kernel_array(xyz, np.float32)
+    pts = points_array(xyz)
     nbr = index_array(knn_indices, length(xyz))
     n = length(pts)
     _check_rows(nbr, n)
@@ -227,7 +227,7 @@ def covariance_features(xyz, knn_indices) -> dict:
     'eigenvalues' (n, 3) ascending; 'curvature' (n,) l0 / (l0 + l1 + l2), 0 when the sum is 0;
     'max_distance' (n,) distance to the farthest of the k neighbours;
     'extent' (n, 3) per-axis max - min of the neighbourhood coordinates."""
-    pts = kernel_array(xyz, np.float32)
+    pts = points_array(xyz)
     nbr = index_array(knn_indices, length(xyz))
     n = length(pts)
     _check_rows(nbr, n)

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from .taichi_compat import runtime_program, ti
 
-from .common import INT32_MAX, cpu_block_dim, f32_order_key, is_ndarray, kernel_array, length, ndarray
+from .common import INT32_MAX, cpu_block_dim, f32_order_key, is_ndarray, length, ndarray, points_array
 from .scan import exclusive_scan_into
 
 # Large primes of the classic spatial hash (Teschner et al. 2003).
@@ -253,11 +253,6 @@ def refined_cell_size(xyz, lo, extent, cell_size: float, cells: int, points_per_
     return size
 
 
-def _check_xyz(xyz):
-    if len(xyz.shape) != 2 or int(xyz.shape[1]) != 3:
-        raise ValueError(f"xyz must have shape (n, 3), got {tuple(xyz.shape)}")
-
-
 _SCRATCH = {}
 _SCRATCH_OWNER = [None]    # the Taichi runtime the cached buffers belong to
 
@@ -289,8 +284,7 @@ def build_grid(xyz, cell_size=None, *, points_per_cell: float = 8.0) -> Grid:
 def build_grid_into(xyz, cell_size, points_per_cell: float, *, private: bool) -> Grid:
     """``build_grid``; ``private`` = the grid never leaves the calling wrapper, so its arrays may
     be scratch buffers (valid until the next private grid is built)."""
-    _check_xyz(xyz)
-    pts = kernel_array(xyz, np.float32)
+    pts = points_array(xyz)
     n = length(pts)
     lo, hi = bounding_box(pts) if n else (np.zeros(3, np.float32), np.zeros(3, np.float32))
     extent = (hi - lo).astype(np.float32)

@@ -14,7 +14,8 @@ cell, so ``slope_filter`` returns the same result either way.
 import numpy as np
 from .taichi_compat import ti
 
-from .common import INT32_MAX, f32_from_order_key, f32_order_key, is_ndarray, kernel_array, like_input, ndarray, output_array
+from .common import (INT32_MAX, f32_from_order_key, f32_order_key, is_ndarray, kernel_array, like_input, ndarray,
+                     output_array, points_array)
 
 DENSE_CELLS_PER_POINT = 4
 DENSE_MIN_CELLS = 1 << 20
@@ -178,8 +179,11 @@ def cell_minimum(xyz, step: float, origin=None):
     """
     if step <= 0:
         raise ValueError(f"grid step must be > 0, got {step}")
-    pts = kernel_array(xyz, "float32")
+    pts = points_array(xyz)
     n = int(pts.shape[0])
+    if n == 0:
+        empty = like_input(output_array(ti.i32, (0,), xyz), xyz)
+        return empty, like_input(output_array(ti.i32, (0,), xyz), xyz), 0
     bounds = _xy_bounds(pts)
     x_min, y_min, n_cols, n_rows = _grid_shape(bounds, step, origin)
     if bounds[0][0] < x_min or bounds[0][1] < y_min:
@@ -203,7 +207,7 @@ def sparse_cell_minimum(xyz, step: float, origin=None):
     """
     if step <= 0:
         raise ValueError(f"grid step must be > 0, got {step}")
-    pts = kernel_array(xyz, "float32")
+    pts = points_array(xyz)
     cell, col_row = _sparse_cells(pts, step, origin, xyz)
     return cell, _lowest_per_cell(pts, cell, len(col_row), xyz), col_row
 
@@ -235,7 +239,7 @@ def plan_cells(xyz, step: float, origin=None):
     reduce per cell themselves (no lowest point computed)."""
     if step <= 0:
         raise ValueError(f"grid step must be > 0, got {step}")
-    pts = kernel_array(xyz, "float32")
+    pts = points_array(xyz)
     n = int(pts.shape[0])
     if n and dense_fits(pts, step, origin):
         x_min, y_min, n_cols, n_rows = _grid_shape(_xy_bounds(pts), step, origin)
@@ -264,13 +268,15 @@ def slope_filter(xyz, step: float, slope_max: float, dh_max: float, origin=None,
 
     Returns ``(keep, height_above_cell_min)``: uint8 keep flags and float32 dh per point.
     """
-    pts = kernel_array(xyz, "float32")
+    pts = points_array(xyz)
     n = int(pts.shape[0])
-    if n and not dense_fits(pts, step, origin):
+    if n == 0:
+        return like_input(output_array(ti.u8, (0,), xyz), xyz), like_input(output_array(ti.f32, (0,), xyz), xyz)
+    if not dense_fits(pts, step, origin):
         cell, cell_lowest, _ = sparse_cell_minimum(pts, step, origin)
     else:
         cell, cell_lowest, _ = cell_minimum(pts, step, origin)
-    if outlier_gap is not None and n:
+    if outlier_gap is not None:
         cell_lowest = _supported_lowest_per_cell(pts, kernel_array(cell, "int32"), cell_lowest, outlier_gap)
     height = output_array(ti.f32, (n,), xyz)
     keep = output_array(ti.u8, (n,), xyz)
@@ -298,7 +304,7 @@ def overtopped(xyz, step: float, clearance: float, origin=None):
     dense or sparse ids, the same cells) stands more than ``clearance`` (m) above it: something
     (a crown, an overhang) covers the point in a view from above. Integer atomics on the
     order-preserving encoding of z: independent of point order and thread timing."""
-    pts = kernel_array(xyz, "float32")
+    pts = points_array(xyz)
     n = int(pts.shape[0])
     out = output_array(ti.u8, (n,), xyz)
     if n:

@@ -37,7 +37,7 @@ Kernels for k <= SMALL_K:
 import numpy as np
 from .taichi_compat import ti
 
-from .common import cpu_block_dim, host_memory_backend, kernel_array, length, like_input, ndarray, output_array
+from .common import cpu_block_dim, host_memory_backend, length, like_input, ndarray, output_array, points_array
 from .grid import Grid, build_grid, build_grid_into, cell_hash, cell_of, compact_mask, scratch
 from .scan import exclusive_scan_into
 
@@ -825,6 +825,8 @@ def _prepare(xyz, k, grid, cell_size, points_per_cell):
 
 
 def _check_k(k, n):
+    if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)):
+        raise TypeError(f"k must be a whole number of neighbours, got {k!r}")
     k = int(k)
     if not 1 <= k <= MAX_K:
         raise ValueError(f"k must be in 1..{MAX_K}, got {k}")
@@ -890,7 +892,7 @@ def knn(xyz, k: int, *, grid: Grid = None, cell_size: float = None):
     built over the same ``xyz``; ``cell_size`` overrides the automatic cell size."""
     n = length(xyz)
     k = _check_k(k, n)
-    pts = kernel_array(xyz, np.float32)
+    pts = points_array(xyz)
     grid = _prepare(pts, k, grid, cell_size, default_points_per_cell(k))
     out_idx = output_array(ti.i32, (n, k), xyz)
     out_dist = output_array(ti.f32, (n, k), xyz)
@@ -913,7 +915,7 @@ def knn_mean_distance(xyz, k: int, *, include_self: bool = False, grid: Grid = N
         out = ndarray(ti.f32, (n,))   # only the point itself: distance 0
         return like_input(out, xyz)
     others = _check_k(others, n)
-    pts = kernel_array(xyz, np.float32)
+    pts = points_array(xyz)
     grid = _prepare(pts, others, grid, cell_size, default_points_per_cell(others))
     out_mean = output_array(ti.f32, (n,), xyz)
     dummy_i = output_array(ti.i32, (1, 1), xyz)      # of out_mean's kind (see knn)
@@ -939,9 +941,9 @@ def nearest(reference, queries, *, grid: Grid = None, cell_size: float = None):
         raise ValueError(f"queries must have shape (m, 3), got {tuple(queries.shape)}")
     if m == 0:
         return np.zeros(0, np.int32), np.zeros(0, np.float32)
-    ref = kernel_array(reference, np.float32)
+    ref = points_array(reference, "reference")
     grid = _prepare(ref, 1, grid, cell_size, NEAREST_POINTS_PER_CELL)
-    pts = kernel_array(queries, np.float32)
+    pts = points_array(queries, "queries")
     out_idx = output_array(ti.i32, (m,), queries)
     out_dist = output_array(ti.f32, (m,), queries)
     ox, oy, oz = grid.origin
@@ -1056,10 +1058,10 @@ def radius_search(xyz, radius: float, *, max_neighbors: int = None, grid: Grid =
     indices[offsets[i]:offsets[i+1]], sorted by (distance, index). ``max_neighbors`` keeps
     only the nearest that many of each row. The indices are numpy when there is no pair at all."""
     radius = float(radius)
-    if not radius >= 0:
-        raise ValueError(f"radius must be >= 0, got {radius}")
+    if not 0 <= radius < np.inf:
+        raise ValueError(f"radius must be a finite distance >= 0, got {radius}")
     n = length(xyz)
-    pts = kernel_array(xyz, np.float32)
+    pts = points_array(xyz)
     if grid is None:
         # a cell slightly larger than the radius: one ring of cells covers it despite rounding
         grid = build_grid(pts, max(radius * 1.001, 1e-6) if n else 1.0)

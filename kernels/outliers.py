@@ -15,7 +15,8 @@ Conventions:
 
 import numpy as np
 
-from .common import INT32_MAX, f32_order_key, is_ndarray, kernel_array, length, like_input, ndarray, to_numpy, zeros
+from .common import (INT32_MAX, f32_order_key, is_ndarray, kernel_array, length, like_input, ndarray, points_array,
+                     to_numpy, zeros)
 from .grid_min import _fill_i32, plan_cells
 from .neighbors import knn_mean_distance
 from .taichi_compat import ti
@@ -146,10 +147,10 @@ def low_noise(xyz, cell: float = 10.0, threshold: float = 1.0, max_cluster: int 
         raise ValueError(f"threshold must be >= 0, got {threshold}")
     if not 1 <= max_cluster <= MAX_CLUSTER:
         raise ValueError(f"max_cluster must be in 1..{MAX_CLUSTER}, got {max_cluster}")
-    n = length(xyz)
+    pts = points_array(xyz)
+    n = length(pts)
     if n == 0:
         return np.zeros(0, np.uint8)
-    pts = kernel_array(xyz, "float32")
     noise = zeros(ti.u8, (n,))
     cell_of, cells = plan_cells(pts, cell, origin)
     cell_of = kernel_array(cell_of, "int32")

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from .taichi_compat import ti
 
-from .common import as_ndarray, kernel_array, like_input, ndarray, output_array, to_numpy
+from .common import as_ndarray, like_input, ndarray, output_array, points_array, to_numpy
 
 SAMPLE_SIZE = 1 << 16   # points every hypothesis is scored on in the preemptive pass
 FINALISTS = 8           # hypotheses scored on all points
@@ -144,12 +144,13 @@ def _unit_plane(plane) -> np.ndarray:
 def plane_distances(xyz, plane):
     """Absolute distances (float32 (n,)) of the points to ``plane`` (a, b, c, d; the normal is
     normalised here). numpy or ndarray, as ``xyz``."""
+    points = points_array(xyz)
     n = int(xyz.shape[0])
     if n == 0:
         return np.zeros(0, np.float32)
     p = _unit_plane(plane)
     out = output_array(ti.f32, (n,), xyz)
-    _distances(kernel_array(xyz, "float32"), *(float(v) for v in p), out)
+    _distances(points, *(float(v) for v in p), out)
     return like_input(out, xyz)
 
 
@@ -186,6 +187,7 @@ def fit_plane(xyz, distance_threshold, *, hypotheses=1000, seed=0, active=None, 
     ``active`` neither seed hypotheses nor count as inliers. sample_size: points of the
     preemptive pass (default SAMPLE_SIZE; all active points when there are fewer).
     """
+    points = points_array(xyz)
     n = int(xyz.shape[0])
     act_host = None if active is None else (to_numpy(active) != 0)
     active_index = None if act_host is None else np.flatnonzero(act_host)
@@ -204,7 +206,6 @@ def fit_plane(xyz, distance_threshold, *, hypotheses=1000, seed=0, active=None, 
     else:
         sample = point_index(np.sort(rng.choice(n_active, sample_n, replace=False)))
 
-    points = kernel_array(xyz, "float32")
     active_nd = as_ndarray(act_host.astype(np.uint8)) if act_host is not None else ndarray(ti.u8, (1,))
     use_active = int(act_host is not None)
     threshold = float(np.float32(distance_threshold))

@@ -25,7 +25,8 @@ rounds, one region at a time, for tests.
 
 import numpy as np
 
-from .common import host_memory_backend, index_array, is_ndarray, kernel_array, length, like_input, output_array, to_numpy
+from .common import (host_memory_backend, index_array, is_ndarray, kernel_array, length, like_input, output_array,
+                     points_array, to_numpy)
 from .taichi_compat import ti
 
 MAX_ROW = 33          # a point and at most 32 neighbours
@@ -167,7 +168,7 @@ def mode_heights(xyz, neighbors, gradient, width, steps: int = 3):
     ``gradient`` float32 (n, 2) is the local slope used to compare heights at one place;
     ``width`` (m) the window of heights that count as the same surface (about 2.5 x the height
     noise): one value, or one per point (float32 (n,): noise that varies across a survey)."""
-    pts = kernel_array(xyz, np.float32)
+    pts = points_array(xyz)
     n = length(pts)
     nbr = index_array(neighbors, n)
     _check_rows(nbr, n)
@@ -183,7 +184,7 @@ def boundary_vote(xyz, neighbors, gradient, label, step: float):
     median slope-corrected heights differ by at least ``step`` (a kerb between them) takes the
     label of the group whose height is closer to its own; every other point keeps its label.
     Region labels follow region boundaries; this puts the boundary on the step itself."""
-    pts = kernel_array(xyz, np.float32)
+    pts = points_array(xyz)
     n = length(pts)
     nbr = index_array(neighbors, n)
     _check_rows(nbr, n)
@@ -195,7 +196,7 @@ def boundary_vote(xyz, neighbors, gradient, label, step: float):
 
 def edge_steps(xyz, heights, gradient, ea, eb):
     """float32 (E,): heights[b] - heights[a] minus the slope's share, per edge (a, b)."""
-    pts = kernel_array(xyz, np.float32)
+    pts = points_array(xyz)
     a = kernel_array(ea, np.int32)
     out = output_array(ti.f32, (length(a),), ea)
     if length(a):

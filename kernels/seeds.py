@@ -62,8 +62,8 @@ import math
 import numpy as np
 from .taichi_compat import ti
 
-from .common import (INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, index_array, is_ndarray, kernel_array, length,
-                     like_input, ndarray, output_array, to_numpy, zeros)
+from .common import (INT32_MAX, as_ndarray, f32_from_order_key, f32_order_key, index_array, is_ndarray, kernel_array,
+                     length, like_input, ndarray, output_array, points_array, to_numpy, zeros)
 
 FOOTPRINT_CELLS_PER_POINT = 4
 FOOTPRINT_MIN_CELLS = 1 << 20
@@ -550,7 +550,7 @@ def attach_to_footprints(xyz, segment, off_surface_ok=None, eligible=None, *, ce
     """
     if cell <= 0:
         raise ValueError(f"cell must be > 0, got {cell}")
-    pts = kernel_array(xyz, "float32")
+    pts = points_array(xyz)
     seg = kernel_array(segment, "int32")
     n = length(seg)
     out = ndarray(ti.i32, (n,))

@@ -11,6 +11,20 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+# values stored_8bit_scale tests at a time
+CHUNK = 1 << 22
+
+
+def stored_8bit_scale(rgb: np.ndarray) -> int:
+    """The factor 16-bit colour values carry: 257 when every value is a multiple of 257 (8-bit
+    scaled to full range), 256 when every value is a multiple of 256 (8-bit shifted up), else 257
+    (genuine 16-bit colour, 65535 full scale). Chunked: no full-size temporary."""
+    values = np.asarray(rgb).reshape(-1)
+    for factor in (257, 256):
+        if all(not np.any(values[start:start + CHUNK] % factor) for start in range(0, len(values), CHUNK)):
+            return factor
+    return 257
+
 
 @dataclass
 class Cloud:
@@ -60,12 +74,15 @@ class Cloud:
         return bool(np.any(self.rgb.max(axis=0) != self.rgb.min(axis=0)))
 
     def rgb8(self) -> np.ndarray | None:
-        """Colour as float32 in 0..255 whatever the stored depth (thresholds are in 8-bit units)."""
+        """Colour as float32 in 0..255 whatever the stored depth (thresholds are in 8-bit units).
+        16-bit colour holding 8-bit values scaled by 256 (a shift, as many writers store them) or
+        by 257 (full scale) gives those 8-bit values exactly (divided by 257 alone, x 256 colour
+        read 0.4 % darker and changed road labels); other 16-bit colour is divided by 257."""
         if self.rgb is None:
             return None
         rgb = self.rgb.astype(np.float32)
         if self.color_depth == 16:
-            rgb /= 257.0
+            rgb /= np.float32(stored_8bit_scale(self.rgb))
         return rgb
 
     def ndvi(self) -> np.ndarray | None:

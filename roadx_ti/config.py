@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any, Literal, Union
 
 import yaml
-from pydantic import Field, PrivateAttr, ValidationError, field_validator, model_validator
+from pydantic import Field, PrivateAttr, StrictBool, ValidationError, field_validator, model_validator
 
 from roadx_ti import backend as _backend
 from roadx_ti.dtm import FORMATS as DTM_FORMATS
@@ -48,7 +48,7 @@ class OutputConfig(_Strict):
         "skipped by downsampling and for records repeating another's x, y, z); processed: only the "
         "points the stages worked on (neither skipped nor a repeat)")
     report_png: bool = Field(True, description="write a top-view PNG beside the output")
-    dtm: str | bool | None = Field(None, description="write the cloth of the last cloth stage as a DTM "
+    dtm: str | StrictBool | None = Field(None, description="write the cloth of the last cloth stage as a DTM "
                                    "raster: a path (.tif/.tiff GeoTIFF with the input's CRS, .asc ESRI "
                                    "ASCII grid + .prj, .npy + .json transform); true: NAME.dtm.tif beside "
                                    "the output; false: none; null (default): NAME.dtm.tif for the ground "

@@ -90,7 +90,8 @@ def laz_delivery(cloud, path, scale: float):
 
 def deliver(cloud, variant: str, tmp_path):
     """(the survey as ``variant`` delivers it, keep): 'laz_1mm' / 'laz_1cm' (laz_delivery),
-    'colour_8bit' (the colour divided by 257, depth 8), 'shuffled' (a seeded permutation) or
+    'colour_8bit' (the colour divided by 257, depth 8), 'colour_x256' (those 8-bit values shifted up
+    by 8 bits, depth 16: many writers store 8-bit colour so), 'shuffled' (a seeded permutation) or
     'thinned' (every point of the first half of a seeded permutation, in index order); variant
     point i is survey point keep[i]."""
     import numpy as np
@@ -100,8 +101,10 @@ def deliver(cloud, variant: str, tmp_path):
     keep = np.arange(cloud.n)
     if variant in ("laz_1mm", "laz_1cm"):
         return laz_delivery(cloud, tmp_path / "s.laz", 0.001 if variant == "laz_1mm" else 0.01), keep
-    if variant == "colour_8bit":
-        return Cloud(xyz=cloud.xyz, origin=cloud.origin, rgb=(cloud.rgb // 257).astype(np.uint16), color_depth=8,
+    if variant in ("colour_8bit", "colour_x256"):
+        eight = (cloud.rgb // 257).astype(np.uint16)
+        rgb, depth = (eight, 8) if variant == "colour_8bit" else (eight * np.uint16(256), 16)
+        return Cloud(xyz=cloud.xyz, origin=cloud.origin, rgb=rgb, color_depth=depth,
                      intensity=cloud.intensity, returns=cloud.returns, classification=cloud.classification), keep
     rng = np.random.default_rng(1)
     keep = rng.permutation(cloud.n) if variant == "shuffled" else np.sort(rng.permutation(cloud.n)[: cloud.n // 2])

@@ -79,6 +79,15 @@ def test_memory_limit_in_bytes_as_a_number():
     # a filter after the labelling stage removed labelled points: exit 0 and no road at all
     ({"pipeline": "road", "stages": [{"road_regions": {}}, {"cloth_smooth": {}}, {"sor": {}}]}, [],
      "stages[1] cloth_smooth, stages[2] sor after stages[0] road_regions, which labels class 11, would remove"),
+    # probe 16: a negative r_max ran and found no roof (kappa 0, exit 0); a negative height in metres
+    # and output.dtm = 1 (read as true) were taken too
+    ({"pipeline": "roof", "stages": [{"roof_seeds": {}}, {"roof_growing": {}}]}, ["stages.roof_seeds.r_max=-1"],
+     "stages[0].roof_seeds.r_max = -1: Input should be greater than 0"),
+    ({"pipeline": "roof", "stages": [{"roof_seeds": {}}, {"roof_growing": {}}]}, ["stages.roof_seeds.r_max=0"],
+     "stages[0].roof_seeds.r_max = 0"),
+    ({"pipeline": "roof", "stages": [{"roof_seeds": {}}, {"roof_growing": {}}, {"roof_filter": {}}]},
+     ["stages.roof_filter.min_roof_height=-5"], "min_roof_height = -5: Input should be greater than or equal to 0"),
+    (GOOD, ["output.dtm=1"], "output.dtm = 1"),
 ])
 def test_config_errors_are_one_line(mapping, overrides, expected):
     with pytest.raises(config.ConfigError) as info:

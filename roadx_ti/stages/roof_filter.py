@@ -136,7 +136,7 @@ def default_footprint_cell(ctx: StageContext) -> float:
 class RoofFilterOptions(StageOptions):
     min_roof_area: float = Field(10.0, ge=0, description="smallest roof segment area (m2); its "
                                  "point count threshold is density * min_roof_area")
-    min_roof_height: float = Field(2.0, description="smallest median height above ground of a "
+    min_roof_height: float = Field(2.0, ge=0, description="smallest median height above ground of a "
                                    "roof segment (m)")
     density: float | None = Field(None, gt=0, description="point density (points/m2); null = measured")
     density_cell: float = Field(1.0, ge=MIN_CELL, description="cell size for measuring density (m)")
@@ -219,7 +219,7 @@ class RoofFilterOptions(StageOptions):
                                        "rule: rough earlier returns of multi-return pulses) may join by "
                                        "edge growth too: an eave splits the pulse (roof, then the ground "
                                        "beside the wall), so a roof's rim is mostly such returns")
-    edge_min_height: float = Field(1.0, description="edge points lower than this above the ground "
+    edge_min_height: float = Field(1.0, ge=0, description="edge points lower than this above the ground "
                                    "(m) never join: the ground and low plants beside a wall")
     covered_clearance: float = Field(1.0, ge=0, description="covered completion, after edge growth: "
                                      "a point that the highest point of its footprint cell overtops by "
@@ -229,7 +229,7 @@ class RoofFilterOptions(StageOptions):
                                      "fails the seed tests and lies beyond edge growth's reach; 0 = off")
     attach_footprint: bool = Field(True, description="add walls, chimneys, roof units and roof "
                                    "points under foliage inside or below a kept roof's footprint")
-    attach_min_height: float = Field(1.0, description="only points at least this high above "
+    attach_min_height: float = Field(1.0, ge=0, description="only points at least this high above "
                                      "ground (m) join a footprint: low returns beside a wall are "
                                      "mostly ground and low plants the cloth left as non-ground")
     footprint_cell: PositiveOrAuto = Field("auto", description="grid cell of the roof "

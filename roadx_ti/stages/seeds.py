@@ -11,7 +11,7 @@ size no grid and no other point's neighbourhood changes.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 
@@ -31,7 +31,7 @@ class RoofSeedsOptions(StageOptions):
         "below this (unitless); null switches the planarity constraint off")
     plane_coef: float = Field(0.8, ge=0.5, le=1.0, description="a candidate is planar when at least "
                               "ceil(plane_coef * k) of its k neighbours are candidates too")
-    r_max: float | Literal["auto"] | None = Field(
+    r_max: Annotated[float, Field(gt=0)] | Literal["auto"] | None = Field(
         1.5, description="farthest of the k neighbours must be closer than this (m); depends on k "
         "and density. 'auto': r_max_radii x the radius k neighbours span at the survey's measured "
         "density (sqrt(k / (pi rho)), rho = ln 2 / (pi s^2) from the median nearest-neighbour "
