@@ -200,8 +200,8 @@ def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> No
         differ = [f.path for f in las if f.count and not _on_grid(grids[f.path], grids[first_path])]
         if differ:
             log.warning("%d input file(s) have other scales or offsets than %s (e.g. %s: scales %s, offsets %s); "
-                        "the merged output takes %s's (scales %s, offsets %s) and their coordinates are rounded "
-                        "to it (output.mode per-file keeps each file's)", len(differ), first_path, differ[0],
+                        "the merged output takes %s's (scales %s, offsets %s), and those of their points that lie "
+                        "off it are rounded to it (output.mode per-file keeps each file's)", len(differ), first_path, differ[0],
                         _numbers(grids[differ[0]][0]), _numbers(grids[differ[0]][1]), Path(first_path).name,
                         _numbers(scales), _numbers(offsets))
 
