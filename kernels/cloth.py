@@ -674,12 +674,12 @@ class LatticeTooLarge(ValueError):
     """The cloth over the points' extent would hold more particles than allowed (``csf``'s
     ``max_particles``); raised before anything is allocated."""
 
-    def __init__(self, cols: int, rows: int, resolution: float, limit: int):
+    def __init__(self, cols: int, rows: int, resolution: float, limit: int, why: str = ""):
         self.cols, self.rows, self.resolution, self.limit = cols, rows, resolution, limit
         self.particles = cols * rows
         super().__init__(f"a cloth of {cols} x {rows} particles ({cols * resolution:.0f} x "
                          f"{rows * resolution:.0f} m at {resolution:g} m) is more than the "
-                         f"{limit} particles allowed")
+                         f"{limit} particles allowed" + (f" ({why})" if why else ""))
 
 
 # bytes per particle of the simulation's arrays, slope smoothing included (at most)
@@ -687,7 +687,9 @@ PARTICLE_BYTES = 64
 
 
 def _memory_particles():
-    """Particles that half the machine's physical memory holds (None where the system does not say)."""
+    """Particles that half the machine's physical memory holds at PARTICLE_BYTES each (None where the
+    system does not say; a container's own limit is the host's business: roadx_ti's cloth stages
+    pass max_particles from roadx_ti.memory, which reads it)."""
     try:
         total = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     except (AttributeError, ValueError, OSError):
@@ -740,7 +742,8 @@ def csf(xyz, *, cloth_resolution: float = 0.5, rigidness: int = 3, time_step: fl
     cells = cols * rows
     limit = _memory_particles() if max_particles is None else int(max_particles)
     if limit is not None and cells > limit:
-        raise LatticeTooLarge(cols, rows, res, limit)
+        raise LatticeTooLarge(cols, rows, res, limit, "by half this machine's memory; max_particles sets another "
+                              "bound" if max_particles is None else "by max_particles")
     if cells >= 2**31 - 1:
         raise LatticeTooLarge(cols, rows, res, 2**31 - 2)
 

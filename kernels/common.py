@@ -115,6 +115,7 @@ def points_array(xyz, name: str = "xyz"):
                 raise ValueError(f"{name} reaches {largest:.6g}: the kernels compute in float32, which keeps "
                                  f"{np.spacing(np.float32(largest)):.2g} m there; subtract a local origin first "
                                  f"(e.g. xyz - xyz.min(axis=0))")
+        return kernel_array(a, np.float32)
     return kernel_array(xyz, np.float32)
 
 

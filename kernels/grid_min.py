@@ -181,9 +181,8 @@ def cell_minimum(xyz, step: float, origin=None):
         raise ValueError(f"grid step must be > 0, got {step}")
     pts = points_array(xyz)
     n = int(pts.shape[0])
-    if n == 0:
-        empty = like_input(output_array(ti.i32, (0,), xyz), xyz)
-        return empty, like_input(output_array(ti.i32, (0,), xyz), xyz), 0
+    if n == 0:      # numpy either way: Taichi has no empty ndarray
+        return np.zeros(0, np.int32), np.zeros(0, np.int32), 0
     bounds = _xy_bounds(pts)
     x_min, y_min, n_cols, n_rows = _grid_shape(bounds, step, origin)
     if bounds[0][0] < x_min or bounds[0][1] < y_min:
@@ -270,8 +269,8 @@ def slope_filter(xyz, step: float, slope_max: float, dh_max: float, origin=None,
     """
     pts = points_array(xyz)
     n = int(pts.shape[0])
-    if n == 0:
-        return like_input(output_array(ti.u8, (0,), xyz), xyz), like_input(output_array(ti.f32, (0,), xyz), xyz)
+    if n == 0:      # numpy either way: Taichi has no empty ndarray
+        return np.zeros(0, np.uint8), np.zeros(0, np.float32)
     if not dense_fits(pts, step, origin):
         cell, cell_lowest, _ = sparse_cell_minimum(pts, step, origin)
     else:

@@ -909,13 +909,14 @@ def knn_mean_distance(xyz, k: int, *, include_self: bool = False, grid: Grid = N
     without materialising an (n, k) array. ``include_self`` counts the point itself as one of
     the k at distance 0 (Open3D's convention): the mean is then over its k-1 nearest others
     plus a zero."""
-    n = length(xyz)
-    others = int(k) - 1 if include_self else int(k)
-    if include_self and int(k) == 1:
+    pts = points_array(xyz)
+    n = length(pts)
+    k = _check_k(k, n + 1 if include_self else n)      # with the point itself: k <= n
+    others = k - 1 if include_self else k
+    if others == 0:
         out = ndarray(ti.f32, (n,))   # only the point itself: distance 0
         return like_input(out, xyz)
     others = _check_k(others, n)
-    pts = points_array(xyz)
     grid = _prepare(pts, others, grid, cell_size, default_points_per_cell(others))
     out_mean = output_array(ti.f32, (n,), xyz)
     dummy_i = output_array(ti.i32, (1, 1), xyz)      # of out_mean's kind (see knn)
@@ -934,16 +935,14 @@ def nearest(reference, queries, *, grid: Grid = None, cell_size: float = None):
     Returns (indices int32 (m,), distances float32 (m,)). numpy in -> numpy out; a Taichi
     ndarray of queries -> ndarrays out (numpy when m = 0: Taichi has no empty ndarrays).
     ``grid`` reuses a grid built over ``reference``; ``cell_size`` overrides the automatic one."""
-    n, m = length(reference), length(queries)
+    ref = points_array(reference, "reference")
+    pts = points_array(queries, "queries")
+    n, m = length(ref), length(pts)
     if n == 0:
         raise ValueError("nearest: the reference point set is empty")
-    if len(queries.shape) != 2 or int(queries.shape[1]) != 3:
-        raise ValueError(f"queries must have shape (m, 3), got {tuple(queries.shape)}")
     if m == 0:
         return np.zeros(0, np.int32), np.zeros(0, np.float32)
-    ref = points_array(reference, "reference")
     grid = _prepare(ref, 1, grid, cell_size, NEAREST_POINTS_PER_CELL)
-    pts = points_array(queries, "queries")
     out_idx = output_array(ti.i32, (m,), queries)
     out_dist = output_array(ti.f32, (m,), queries)
     ox, oy, oz = grid.origin

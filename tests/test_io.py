@@ -6,6 +6,7 @@ import hashlib
 import re
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import laspy
@@ -282,7 +283,6 @@ def test_subset_writes_only_those_points(tmp_path):
         assert np.array_equal(np.asarray(back.segment_id), seg[mask])
 
 
-
 @pytest.mark.parametrize("subset, message", [([-1], r"\[0, 300\)"), ([300], r"\[0, 300\)"),
                                              (np.ones(299, bool), "one value per point"),
                                              (np.array([0.0, 1.0]), "point indices")])
@@ -292,6 +292,10 @@ def test_subset_outside_the_cloud_is_refused(tmp_path, subset, message):
     with pytest.raises(ValueError, match=message):
         io.write(tmp_path / "sub.laz", cloud, subset=subset)
     assert not (tmp_path / "sub.laz").exists()
+    for writer in ("sub.ply", "sub.csv"):       # the other formats' writers take the same rule
+        with pytest.raises(ValueError, match=message):
+            io.write(tmp_path / writer, cloud, subset=subset)
+
 
 def test_all_zero_colour_is_no_colour(tmp_path):
     world = np.random.default_rng(2).uniform(0, 10, (50, 3))
@@ -377,6 +381,17 @@ def test_other_format_round_trip(tmp_path, ext, depth):
     assert np.array_equal(back.attributes["segment_id"], seg)
     info = io.info(out)
     assert info["point_count"] == cloud.n and info["color_depth"] == back.color_depth
+
+
+def test_pcd_gives_back_8bit_colour_stored_x256_exactly(tmp_path):
+    """PCD holds 8-bit colour: 16-bit colour holding 8-bit values x 256 (a shift) is written as
+    those values (divided by 257 alone, every value over 128 came back one level low)."""
+    cloud, _ = synthetic_cloud(depth=16)
+    eight = (cloud.rgb // 257).astype(np.uint16)
+    shifted = replace(cloud, rgb=eight * np.uint16(256))
+    io.write(tmp_path / "c.pcd", shifted)
+    back = io.read(tmp_path / "c.pcd")
+    assert back.color_depth == 8 and np.array_equal(back.rgb, eight)
 
 
 def test_las_to_ply_keeps_extra_dims(shared_data, tmp_path):

@@ -578,3 +578,22 @@ def test_tiled_text_output_of_las_files_carries_every_field_exactly(tmp_path):
     both = [laspy.read(folder / n) for n in ("a.las", "b.las")]
     np.testing.assert_array_equal(table[names[0]], np.concatenate([np.asarray(x.x) for x in both]))
     np.testing.assert_array_equal(table["gps_time"], np.concatenate([np.asarray(x.gps_time) for x in both]))
+
+
+@pytest.mark.parametrize("scale", [256, 257])
+def test_a_window_of_8bit_and_16bit_files_reads_each_files_colour_as_alone(scale):
+    """A window joining a file of raw 8-bit colour and one of 8-bit values stored x 256 (or x 257):
+    the 8-bit file takes the other's scale, so every point reads its own 8-bit value (with x 257
+    forced on the 8-bit file, the x 256 file had read 0.4 % darker in the joined window)."""
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.tiling.tile import concat_clouds
+
+    rng = np.random.default_rng(0)
+    values = rng.integers(0, 256, (2, 50, 3)).astype(np.uint16)
+    xyz = rng.random((2, 50, 3)).astype(np.float32)
+    origin = np.zeros(3)
+    raw = Cloud(xyz=xyz[0], origin=origin, rgb=values[0], color_depth=8)
+    wide = Cloud(xyz=xyz[1], origin=origin, rgb=values[1] * np.uint16(scale), color_depth=16)
+    joined = concat_clouds([raw, wide], origin)
+    assert np.array_equal(joined.rgb8(), np.concatenate([raw.rgb8(), wide.rgb8()]))
+    assert np.array_equal(joined.rgb8(), np.concatenate(values).astype(np.float32))

@@ -129,7 +129,7 @@ def write(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=No
             # 2.5 was written as class 2 to PLY, PCD, NPZ and text
             raise ValueError(f"classification must hold whole class numbers, e.g. not {classes[classes != np.round(classes)][0]:g}")
     if subset is not None:
-        subset = _checked_subset(subset, cloud.n)
+        _las_write.point_index(subset, cloud.n)        # before the output path is checked or made
     path = Path(path)
     kind = _kind(path)
     inputs = [cloud.source] if cloud.source and Path(cloud.source).exists() else []
@@ -143,21 +143,6 @@ def write(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=No
             raise
         except ValueError as exc:      # a column the format cannot hold (other.writable_columns)
             raise fail(path, f"cannot be written: {' '.join(str(exc).split())}") from None
-
-
-def _checked_subset(subset, n: int) -> np.ndarray:
-    """``subset`` as a bool mask of n points or indices in [0, n) (in the order to write them):
-    numpy's own rules would read -1 as the last point."""
-    s = np.asarray(subset)
-    if s.dtype == bool:
-        if s.shape != (n,):
-            raise ValueError(f"subset: a mask must hold one value per point ({n}), not shape {s.shape}")
-        return s
-    if s.ndim != 1 or (s.size and s.dtype.kind not in "iu"):
-        raise ValueError(f"subset: give a bool mask or a 1-D array of point indices, not {s.dtype} of shape {s.shape}")
-    if s.size and (s.min() < 0 or s.max() >= n):
-        raise ValueError(f"subset: point indices must lie in [0, {n}), not {int(s.min())}..{int(s.max())}")
-    return s.astype(np.int64, copy=False)
 
 
 WRITABLE_CHUNK = 1 << 20    # points check_writable converts at a time

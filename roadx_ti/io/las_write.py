@@ -32,13 +32,15 @@ def point_index(subset, n: int):
     index = np.asarray(subset)
     if index.dtype == bool:
         if index.shape != (n,):
-            raise ValueError(f"subset mask has shape {index.shape}, expected ({n},)")
+            raise ValueError(f"subset: a mask must hold one value per point ({n}), not shape {index.shape}")
         return index
-    if index.ndim != 1 or not np.issubdtype(index.dtype, np.integer):
-        raise ValueError("subset must be a boolean mask or an array of point indices")
-    if index.size and (index.min() < -n or index.max() >= n):
-        raise ValueError(f"subset indices out of range for {n} points")
-    return index
+    if index.ndim != 1 or (index.size and not np.issubdtype(index.dtype, np.integer)):
+        raise ValueError(f"subset: give a bool mask or a 1-D array of point indices, not {index.dtype} of shape "
+                         f"{index.shape}")
+    # numpy's own rule would read -1 as the last point
+    if index.size and (index.min() < 0 or index.max() >= n):
+        raise ValueError(f"subset: point indices must lie in [0, {n}), not {int(index.min())}..{int(index.max())}")
+    return index.astype(np.int64, copy=False)
 
 
 def per_point(name: str, values, n: int, index) -> np.ndarray:

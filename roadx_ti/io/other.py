@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cloud import Cloud, detect_color_depth
+from ..cloud import Cloud, detect_color_depth, stored_8bit_scale
 from .atomic import InputError, atomic_output, fail
 from .las_write import per_point, point_index
 
@@ -565,8 +565,10 @@ def write_pcd(path, cloud: Cloud, classification=None, extra_dims=None, subset=N
         if "red" in cols:
             rgb = np.column_stack([cols.pop("red"), cols.pop("green"), cols.pop("blue")])
             if rgb.dtype != np.uint8:   # PCD packs colour in 3 bytes
-                log.warning("%s: PCD colour is 8-bit; 16-bit colour written divided by 257", path)
-                rgb = np.round(rgb / 257.0).astype(np.uint8)
+                # 8-bit values stored x 256 or x 257 come back exactly (cloud.stored_8bit_scale)
+                scale = stored_8bit_scale(rgb)
+                log.warning("%s: PCD colour is 8-bit; 16-bit colour written divided by %d", path, scale)
+                rgb = np.round(rgb / float(scale)).astype(np.uint8)
             pc.point.colors = o3d.core.Tensor(np.ascontiguousarray(rgb))
         for name, a in cols.items():
             pc.point[name] = o3d.core.Tensor(np.ascontiguousarray(a.reshape(-1, 1)))

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from roadx_ti.cloud import Cloud
+from roadx_ti.cloud import Cloud, stored_8bit_scale
 from roadx_ti.stages.base import ESTIMATES, GROUND_SURFACE, SURVEY_POINTS, SURVEY_Z_MIN
 from roadx_ti.tiling.plan import CoreGrid, Tile
 from roadx_ti.tiling.split import read_part
@@ -79,7 +79,11 @@ def concat_clouds(clouds: list[Cloud], origin: np.ndarray) -> Cloud:
     rgb = None
     if all(c.rgb is not None for c in clouds):
         deep = max(c.color_depth for c in clouds)
-        rgb = np.concatenate([c.rgb.astype(np.uint16) * np.uint16(257 if deep == 16 and c.color_depth == 8 else 1)
+        # 8-bit files beside 16-bit ones take the 16-bit files' own scale (cloud.stored_8bit_scale:
+        # x 256 or x 257), so that the window reads each file's colour as it alone would
+        wide = [c.rgb for c in clouds if c.color_depth == 16]
+        scale = stored_8bit_scale(np.concatenate(wide)) if wide and deep == 16 else 1
+        rgb = np.concatenate([c.rgb.astype(np.uint16) * np.uint16(scale if c.color_depth == 8 else 1)
                               for c in clouds])
     pick = lambda name: (np.concatenate([getattr(c, name) for c in clouds])  # noqa: E731
                          if all(getattr(c, name) is not None for c in clouds) else None)
