@@ -24,7 +24,7 @@ from roadx_ti import isolation, memory, plateaus, terrain_trend
 from roadx_ti.cloud import Cloud
 from roadx_ti.errors import DataError
 from roadx_ti.estimates import TERRAIN_CELL, TERRAIN_REACH
-from roadx_ti.kernels.cloth import LATTICE_PERIOD, ClothResult, LatticeTooLarge, csf
+from roadx_ti.kernels.cloth import LATTICE_PERIOD, PARTICLE_BYTES, ClothResult, LatticeTooLarge, csf
 from roadx_ti.stages.base import (CLASS_GROUND, MIN_CELL, GROUND_NOISE, GROUND_SURFACE, SURVEY_Z_MIN, GroundSurface, Stage,
                                   StageContext, StageOptions, StageResult, estimate)
 
@@ -32,7 +32,6 @@ from roadx_ti.stages.base import (CLASS_GROUND, MIN_CELL, GROUND_NOISE, GROUND_S
 # more than this far below the tile's own lowest point: an archive's lowest point says nothing about
 # a mountain tile, and a longer fall costs iterations.
 MAX_START_DROP = 100.0   # m
-BYTES_PER_PARTICLE = 64  # the simulation's per-particle arrays (kernels/cloth.py csf), with slope smoothing
 # m: least reach of a cloth (half the widest building it hangs over): a building cut by a tile
 # window's edge loses the terrain around it that holds the cloth up
 CLOTH_SPAN = 30.0
@@ -175,13 +174,13 @@ def _simulate(options: ClothOptions, xyz: np.ndarray, origin, ctx: StageContext,
                      slope_smooth=options.slope_smooth, lattice_origin=lattice,
                      # a survey's lowest point says nothing of heights above the trend
                      start_z=start_z(xyz, ctx) if options.align_to_world and trend is None else None,
-                     max_particles=memory.dense_limit(len(xyz), BYTES_PER_PARTICLE))
+                     max_particles=memory.dense_limit(len(xyz), PARTICLE_BYTES))
     except LatticeTooLarge as exc:
         extent = xyz[:, :2].max(axis=0) - xyz[:, :2].min(axis=0)
         raise DataError(
             f"{stage}: a cloth over {extent[0]:.0f} x {extent[1]:.0f} m would hold {exc.particles:,} particles "
             f"at cloth_resolution {options.cloth_resolution:g} m "
-            f"({memory.format_size(exc.particles * BYTES_PER_PARTICLE)}) for {len(xyz):,} points, more than "
+            f"({memory.format_size(exc.particles * PARTICLE_BYTES)}) for {len(xyz):,} points, more than "
             f"the {exc.limit:,} allowed: raise stages.{stage}.cloth_resolution or run in tiles "
             "(--tile-size)") from None
     if trend is not None:
