@@ -410,7 +410,7 @@ def grow_roof_edges(xyz, knn_indices, segment, normal, curvature, eligible, *, r
     label = np.ascontiguousarray(to_numpy(segment), np.int32).copy()
     if n == 0 or int(knn.shape[1]) == 0 or rounds <= 0 or not (label >= 0).any():
         return label
-    host_xyz = np.asarray(to_numpy(points_array(xyz)), np.float32)
+    host_xyz = to_numpy(points_array(xyz))      # float32, checked
     if len(host_xyz) != n:
         raise ValueError(f"xyz has {len(host_xyz)} points for {n} kNN rows")
     host_curv = np.asarray(to_numpy(curvature), np.float32)

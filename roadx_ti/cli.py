@@ -521,12 +521,11 @@ def _cmd_run(args) -> int:
     log.info("Taichi backend: %s", arch)
     truth = None
     if cloud.classification is not None:
-        from roadx_ti.metrics import class_mask
+        from roadx_ti.metrics import class_mask, no_truth_line
         truth = class_mask(cloud.classification, cfg.truth_classes)
         if not truth.any():
             truth = None
-            log.info("no accuracy: no input point carries class %s (evaluate.truth_classes)",
-                     ", ".join(str(c) for c in cfg.truth_classes))
+            log.info(no_truth_line(cfg.truth_classes))
     ctx = StageContext(seed=cfg.seed, log=log)
     stages = pipelines.build_stages(stage_specs)
     progress = _progress_bar(len(stages), args.quiet)

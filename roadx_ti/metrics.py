@@ -43,5 +43,10 @@ def scores(truth: np.ndarray, pred: np.ndarray) -> dict:
     }
 
 
+def no_truth_line(classes) -> str:
+    """The log line of a run that gives no accuracy because no input point carries ``classes``."""
+    return f"no accuracy: no input point carries class {', '.join(str(c) for c in classes)} (evaluate.truth_classes)"
+
+
 def class_mask(classification: np.ndarray, classes) -> np.ndarray:
     return np.isin(np.asarray(classification), np.asarray(list(classes)))

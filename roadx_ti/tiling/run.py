@@ -325,8 +325,8 @@ def run_catalog(cfg, input_paths, output_path, *, workers: int | None = None, sc
         summary["truth_classes"] = cfg.truth_classes
         summary["accuracy"] = scores(truth, np.concatenate(merge.pred))
     elif truth is not None:
-        log.info("no accuracy: no input point carries class %s (evaluate.truth_classes)",
-                 ", ".join(str(c) for c in cfg.truth_classes))
+        from roadx_ti.metrics import no_truth_line
+        log.info(no_truth_line(cfg.truth_classes))
     if dtm_summary is not None:
         summary["dtm"] = dtm_summary
     summary["summary_path"] = str(summary_path)
