@@ -35,8 +35,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import breadth_first_order, connected_components, maximum_flow
 
 
 # bytes per cell of kerbless_road's plan raster at its peak (float64 votes and distances, int32 parts)
@@ -205,6 +203,10 @@ def _colour_log_ratio(mean, lower, upper, weight, bandwidth, centroid=None, bloc
 def _min_cut(unary_road, A, B, C, D, pa, pb, n):
     """Minimise sum unary_road * x + sum E_pair(x_a, x_b) over binary x (1 = road), with pair
     energies A=E(0,0), B=E(0,1), C=E(1,0), D=E(1,1), B + C >= A + D. Returns bool (n,)."""
+    # scipy here, not at the top: a CLI run that stops at its config check does not pay for it
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import breadth_first_order, maximum_flow
+
     lin = unary_road.copy()
     np.add.at(lin, pa, C - A)
     np.add.at(lin, pb, D - C)
@@ -292,6 +294,9 @@ def road_kerb_share(graph, road, kerb, b_upper) -> float:
 
 
 def _components(n, pa, pb, link):
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+
     g = csr_matrix((np.ones(int(link.sum())), (pa[link], pb[link])), shape=(n, n))
     return connected_components(g, directed=False)
 

@@ -56,7 +56,10 @@ VARIANTS = [pytest.param("laz_1mm", marks=KNIFE_EDGE), pytest.param("laz_1cm", m
             "colour_8bit", "colour_x256", "shuffled", pytest.param("thinned", marks=KNIFE_EDGE)]
 
 
-VULKAN_VARIANTS = [v for v in VARIANTS if getattr(v, "values", (v,))[0] in ("laz_1cm", "colour_8bit", "shuffled")]
+# On Vulkan the deliveries that hold on the CPU (about 50 s each on lavapipe). The LAZ deliveries'
+# knife edge is the CPU's xfail above; the same xfail on Vulkan (it ran 94 s with the baseline)
+# showed nothing more, and kept the suite over its 15 minutes on a 2-core machine.
+VULKAN_VARIANTS = ["colour_8bit", "shuffled"]
 _BASELINE: dict = {}
 
 

@@ -37,7 +37,6 @@ import math
 
 import numpy as np
 from pydantic import Field, field_validator
-from scipy.special import ndtr
 
 from roadx_ti.chunks import over_chunks
 from roadx_ti.cloud import Cloud
@@ -172,6 +171,8 @@ def kerb_evidence(steps, sigma, kerb_min, kerb_max, prior):
     """Per edge: posterior probabilities that it steps up from a to b, or from b to a, by a
     kerb (height uniform in [kerb_min, kerb_max]) rather than lying on one surface (Gaussian of
     the measured spread, with a wider tail for outliers). Elementwise, in chunks (roadx_ti.chunks)."""
+    from scipy.special import ndtr     # here: a run that stops at its config check does not import scipy
+
     r = np.asarray(steps, np.float64)
     sigma = np.maximum(np.asarray(sigma, np.float64), 1e-4)      # one value, or one per edge
     span = kerb_max - kerb_min

@@ -97,7 +97,6 @@ import numpy as np
 from typing import Annotated, Literal
 
 from pydantic import Field
-from scipy.spatial import cKDTree
 
 from roadx_ti.cloud import Cloud
 from roadx_ti.estimates import MAD_TO_SIGMA
@@ -383,6 +382,8 @@ def over_roofs(xyz: np.ndarray, core: np.ndarray, grown: np.ndarray, cell: float
     at, in_roof_cell = find(cells, keys[new])
     high = new[in_roof_cell & (pts[new, 2] > top[at] + height)]
     if len(high):
+        from scipy.spatial import cKDTree   # here: a run that stops at its config check does not import scipy
+
         # the roof points within reach in plan of a high point lie in its window of cells
         near = roof[_in_window(keys[roof], keys[high], int(np.ceil(round(reach / cell, 9))), int(ij[:, 1].max()) + 1)]
         distance, _ = cKDTree(pts[near]).query(pts[high], distance_upper_bound=reach)
@@ -549,6 +550,7 @@ def annex_segments(segment: np.ndarray, xy: np.ndarray, kept: np.ndarray, candid
     probe = probe[_in_window(keys[probe], keys[roof], reach_cells, n_rows)]
     if not len(probe) or not len(roof):
         return np.zeros(count, bool)
+    from scipy.spatial import cKDTree
     distance, _ = cKDTree(xy[inside[roof]].astype(np.float64)).query(
         xy[inside[probe]].astype(np.float64), distance_upper_bound=float(reach))
     contact = np.bincount(seg[probe[np.isfinite(distance)]], minlength=count)
