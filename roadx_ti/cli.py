@@ -672,10 +672,10 @@ def _run_tiled(cfg, out: Path, args) -> int:
         raise config.ConfigError("config error: input: tiled runs read files; give input.paths or --input")
     from roadx_ti.tiling.run import dtm_output
     inputs = [f.path for f in tiling.catalog(cfg.input.paths, warn=False)]
-    from roadx_ti.io.las_write import check_laz_wave_packets_of
+    from roadx_ti.io.las_write import check_writable_records_of
     merged = {}
     for path in inputs:     # before the tiles, not at the merge (decodes only formats 9 / 10 into LAZ)
-        check_laz_wave_packets_of(out if cfg.output.mode == "merged" else out / Path(path).name, path,
+        check_writable_records_of(out if cfg.output.mode == "merged" else out / Path(path).name, path,
                                   merged if cfg.output.mode == "merged" else None)
     if cfg.output.report_png:
         # the echoed config says report_png: true; the picture is drawn from one cloud in memory

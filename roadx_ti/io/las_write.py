@@ -256,11 +256,11 @@ def check_laz_wave_packets(path, las: laspy.LasData, state: dict) -> None:
                          "them wrongly); write .las instead")
 
 
-def check_writable_records_of(path, source) -> None:
-    """Before a run: InputError when the LAS/LAZ ``source``'s records cannot be written back to the
-    LAS/LAZ ``path`` (more than 3 undocumented extra bytes per point: laspy declares them as one
-    undocumented field it cannot read back, and the write failed after the whole pipeline), then
-    check_laz_wave_packets_of."""
+def check_writable_records_of(path, source, state: dict | None = None) -> None:
+    """Before a run (untiled, and tiled for each input): InputError when the LAS/LAZ ``source``'s
+    records cannot be written back to the LAS/LAZ ``path`` (more than 3 undocumented extra bytes
+    per point: laspy declares them as one undocumented field it cannot read back, and the write
+    failed after the whole pipeline), then check_laz_wave_packets_of (``state``: see there)."""
     if not str(path).lower().endswith((".las", ".laz")) or not str(source).lower().endswith((".las", ".laz")):
         return
     with laspy.open(source) as reader:
@@ -270,7 +270,7 @@ def check_writable_records_of(path, source) -> None:
                          "(no Extra Bytes record describes them), which a LAS/LAZ output cannot carry back "
                          "readably; describe them (an Extra Bytes VLR) or drop them first (e.g. pdal translate), "
                          "or write .ply / .npz")
-    check_laz_wave_packets_of(path, source)
+    check_laz_wave_packets_of(path, source, state)
 
 
 def check_laz_wave_packets_of(path, source, state: dict | None = None) -> None:
