@@ -480,6 +480,12 @@ def test_catalog_coordinate_systems_and_grids(tmp_path, caplog):
     assert "other scales or offsets" not in caplog.text
     check_compatible(off_grid, merged_las=True)
     assert "other scales or offsets" in caplog.text
+    # the merged file's header is the first file with a CRS (template_source): the first file's points
+    # do not fit its 10 nm grid, which spans +-21 m of its offset (the checks took the first file's
+    # grid, and the merge failed after every tile)
+    fine_grid = files((None, 0.01, None), ("EPSG:25832", 1e-8, [500025, 4500000, 100]))
+    with pytest.raises(io.InputError, match=r"0\.laz: its x coordinates .* with 1\.laz's scale 1e-08"):
+        check_compatible(fine_grid, merged_las=True)
 
 
 def test_a_warning_every_tile_repeats_is_logged_once(tmp_path, caplog):

@@ -176,8 +176,13 @@ def check_compatible(files: list[CatalogFile], merged_las: bool, log=None) -> No
             log.warning("%d input file(s) name no coordinate system (e.g. %s); taken to be in %s like %s",
                         len(unnamed), unnamed[0], _crs_name(first), first_path)
     if merged_las:
-        # the merged file takes the header of the first file with points (io.las_write.template_source)
-        first_path = next((f.path for f in las if f.count), las[0].path)
+        # the merged file takes the header of io.las_write.template_source's file (the first with
+        # points and a CRS record, else the first with points): the checks below test against it
+        # (they tested the first file with points, and a catalog whose CRS came from a later file
+        # failed at the merge, after every tile, or was warned of with the wrong file's grid)
+        from roadx_ti.io.las_write import template_source
+
+        first_path = template_source([f.path for f in las])
         # one merged file holds one point format: say it before the tiles run, not at the merge
         for f in las:
             # laspy's own test when it writes (ids, and extra dimensions with their descriptions)
