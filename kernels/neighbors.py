@@ -512,7 +512,9 @@ def _knn_blocks(order: ti.types.ndarray(dtype=ti.i32, ndim=1), sxyz: ti.types.nd
     (``_block_search``). ``block_bits`` 2: blocks of 4x4x4 cells (one contiguous range of 64
     buckets, ``grid.cell_hash``): the sparse regions and outliers the cell kernel leaves on CPUs,
     every query on GPUs. (With single cells, an isolated outlier walked so many empty shells that
-    it reached the scan of every point, whose long invocation lavapipe cut short: wrong rows.)"""
+    it reached the scan of every point, whose long invocation lavapipe cut short: wrong rows. Mesa's
+    llvmpipe ends all loops of an invocation after 65,535 iterations in all, silently: an isolated
+    point's search can still run that long there, tests/test_determinism.py.)"""
     for qs in range(queries.shape[0]):
         s = queries[qs]
         q = ti.math.vec3(sxyz[s, 0], sxyz[s, 1], sxyz[s, 2])
@@ -853,7 +855,7 @@ def _run_scan(grid: Grid, k: int, out_idx, out_dist, out_mean, emit_rows: bool, 
         return
     if not host_memory_backend():
         # GPUs: one query per thread (the cell kernel runs one cell's queries serially in one
-        # thread, which suits CPUs; under lavapipe such long invocations lost rows)
+        # thread, which suits CPUs; lavapipe ends loops after 65,535 iterations per invocation)
         queries = scratch("knn.all_queries", ti.i32, (grid.n,))
         _iota(queries)
         _knn_blocks(grid.order, grid.sorted_xyz, grid.sorted_cell, grid.bucket_start, queries,
