@@ -833,6 +833,13 @@ def case_scale_zero(d):
     return _tiny(d, _header_field(d, "scale0.las", 131, "<d", 0.0), message="invalid header")
 
 
+def case_scale_negative(d):
+    """A header whose x scale is -0.01 (probe 19): exit 1, 'invalid header' (it ran, and the output's
+    header box had min x > max x)."""
+    return _tiny(d, _header_field(d, "scale_neg.las", 131, "<d", -0.01),
+                 message="invalid header: scales [-0.01, 0.01, 0.01]: a negative scale")
+
+
 def case_offset_at_the_float64_limit(d):
     """An x offset of 1.7976931348623157e308 (every x collapses onto it; it ran and wrote
     meaningless labels): exit 1, the header named as wrong."""

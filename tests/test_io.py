@@ -1107,3 +1107,33 @@ def test_info_of_other_formats_sees_their_nir_and_names_the_newer_classes(tmp_pa
     assert described["fields"]["nir"]["present"] is True
     names = {row["class"]: row["name"] for row in described["classes"]}
     assert names == {19: "overhead structure", 20: "ignored ground"}
+
+
+def test_returns_of_a_pdal_text_export_and_nir_into_las_and_text_column_names(tmp_path):
+    """Probe 19: PDAL's writers.text names the returns ReturnNumber / NumberOfReturns (they were
+    plain columns: the roof pipeline's returns cue was off); NIR read from a PLY goes to LAS as point
+    format 8 (it was dropped); a column name with a space cannot be a text header's name (the header
+    split it, and the read-back ignored the whole header: colour and classes lost)."""
+    xyz = np.column_stack([np.arange(20.0), np.zeros(20), np.ones(20)]) + [500000.0, 4500000.0, 0]
+    (tmp_path / "pdal.csv").write_text('"X","Y","Z","ReturnNumber","NumberOfReturns","Classification"\n' + "\n".join(
+        f"{p[0]:.3f},{p[1]:.3f},{p[2]:.3f},{1 + k % 2},2,5" for k, p in enumerate(xyz)) + "\n")
+    pdal = io.read(tmp_path / "pdal.csv")
+    assert pdal.returns is not None and np.array_equal(pdal.returns[:, 0], 1 + np.arange(20) % 2)
+    io.write(tmp_path / "pdal.txt", pdal)
+    header = (tmp_path / "pdal.txt").read_text().splitlines()[0]
+    assert "return_number" not in header and "ReturnNumber" in header        # written back once, as it came
+
+    rgb = np.full((20, 3), 200, np.uint16)
+    nir = np.arange(20, dtype=np.uint16) * 1000
+    io.write(tmp_path / "n.ply", Cloud.from_world(xyz, rgb=rgb, color_depth=8, nir=nir))
+    io.write(tmp_path / "n.laz", io.read(tmp_path / "n.ply"))
+    las = laspy.read(tmp_path / "n.laz")
+    assert las.header.point_format.id == 8 and np.array_equal(np.asarray(las.nir), nir)
+    io.write(tmp_path / "grey.ply", Cloud.from_world(xyz, nir=nir))      # NIR without colour: an extra dimension
+    io.write(tmp_path / "grey.laz", io.read(tmp_path / "grey.ply"))
+    assert np.array_equal(np.asarray(laspy.read(tmp_path / "grey.laz")["nir"]), nir)
+
+    spaced = Cloud.from_world(xyz, attributes={"Echo Width": np.ones(20, np.float32)})
+    for ext in (".txt", ".csv"):
+        assert "cannot be a text column name" in one_line_error(tmp_path, io.write, tmp_path / f"s{ext}", spaced)
+        assert not (tmp_path / f"s{ext}").exists()

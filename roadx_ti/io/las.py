@@ -230,6 +230,11 @@ def _check_header(path, header) -> None:
     if np.any(scales == 0):
         raise fail(path, f"invalid header: scales {_numbers(scales)}: a scale of 0 puts every point on the "
                          "offset; fix the header (e.g. pdal translate with writers.las.scale_x)")
+    if np.any(scales < 0):
+        # valid arithmetic, but the file's header box and most readers take min(X) for the smallest
+        # coordinate: the output's header had min x > max x
+        raise fail(path, f"invalid header: scales {_numbers(scales)}: a negative scale mirrors the records; "
+                         "rewrite the file with positive scales (e.g. pdal translate with writers.las.scale_x)")
     if np.any(np.abs(scales) > MAX_SCALE) or np.any(np.abs(offsets) > MAX_COORDINATE):
         raise fail(path, f"invalid header: scales {_numbers(scales)} offsets {_numbers(offsets)}: steps over "
                          f"{MAX_SCALE:g} m or offsets over {MAX_COORDINATE:g} m are no survey's; the header's scales "

@@ -193,15 +193,21 @@ def fits_new_file(local: np.ndarray) -> bool:
 def las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> laspy.LasData:
     n = cloud.n
     has_rgb = cloud.rgb is not None
-    header = laspy.LasHeader(point_format=7 if has_rgb else 6, version="1.4")
+    # NIR (a PLY / PCD / NPZ / text column read as such) goes to point format 8 beside colour, or
+    # to an extra dimension 'nir' without it (format 8 holds RGB too): it was dropped silently
+    nir_field = cloud.nir is not None and has_rgb
+    header = laspy.LasHeader(point_format=8 if nir_field else 7 if has_rgb else 6, version="1.4")
     header.scales = np.full(3, NEW_FILE_SCALE)
     header.offsets = cloud.origin.copy()
     standard = set(header.point_format.standard_dimension_names)
     columns = dict(cloud.attributes)
+    if cloud.nir is not None and not nir_field and "nir" not in columns:
+        columns["nir"] = np.asarray(cloud.nir, np.uint16)
     columns.update(extra_dims or {})
     standard_cols, extra = {}, {}
     taken = {"X", "Y", "Z", "x", "y", "z"} | ({"red", "green", "blue"} if has_rgb else set())
     taken |= {"intensity"} if cloud.intensity is not None else set()
+    taken |= {"nir"} if nir_field else set()
     taken |= {"classification"} if classification is not None or cloud.classification is not None else set()
     for name, values in columns.items():
         a = per_point(name, values, n, index)
@@ -226,6 +232,8 @@ def las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> la
         record["red"], record["green"], record["blue"] = rgb[:, 0], rgb[:, 1], rgb[:, 2]
     if cloud.intensity is not None:
         record["intensity"] = per_point("intensity", cloud.intensity, n, index).astype(np.uint16)
+    if nir_field:
+        record["nir"] = per_point("nir", cloud.nir, n, index).astype(np.uint16)
     classes = classification if classification is not None else cloud.classification
     if classes is not None:
         record["classification"] = _classes(path, per_point("classification", classes, n, index))

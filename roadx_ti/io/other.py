@@ -124,8 +124,8 @@ def writable_columns(cloud: Cloud, classification, extra_dims, subset):
         if classes.size and (classes.min() < 0 or classes.max() > 255):
             raise ValueError("classification values must be 0-255")
         cols["classification"] = classes.astype(np.uint8)
-    own_columns = {k.lower() for k in cloud.attributes}
-    if cloud.returns is not None and not {"return_number", "number_of_returns"} & own_columns:
+    own_columns = {k.lower().replace("_", "") for k in cloud.attributes}   # (ReturnNumber: _returns)
+    if cloud.returns is not None and not {"returnnumber", "numberofreturns"} & own_columns:
         returns = pick(cloud.returns)
         cols["return_number"], cols["number_of_returns"] = returns[:, 0].copy(), returns[:, 1].copy()
     if cloud.nir is not None and "nir" not in own_columns:
@@ -154,13 +154,14 @@ def writable_columns(cloud: Cloud, classification, extra_dims, subset):
 
 
 def _returns(path, attributes: dict) -> np.ndarray | None:
-    """(n, 2) uint8 return number / number of returns from columns of those names (they stay
-    attributes too, written back as they came), else None."""
-    lower = {k.lower(): k for k in attributes}
-    if "return_number" not in lower or "number_of_returns" not in lower:
+    """(n, 2) uint8 return number / number of returns from columns of those names, with or without
+    underscores in any case (PDAL's writers.text names them ReturnNumber, NumberOfReturns; they
+    stay attributes too, written back as they came), else None."""
+    lower = {k.lower().replace("_", ""): k for k in attributes}
+    if "returnnumber" not in lower or "numberofreturns" not in lower:
         return None
-    pair = np.column_stack([np.asarray(attributes[lower["return_number"]]),
-                            np.asarray(attributes[lower["number_of_returns"]])])
+    pair = np.column_stack([np.asarray(attributes[lower["returnnumber"]]),
+                            np.asarray(attributes[lower["numberofreturns"]])])
     if pair.size and (np.nanmin(pair) < 0 or np.nanmax(pair) > 255 or not np.array_equal(pair, np.round(pair))):
         # 300 or -1 were clipped to 255 / 0 silently; the columns stay attributes as they came
         log.warning("%s: return_number / number_of_returns hold values that are no return counts (whole numbers "
@@ -789,8 +790,13 @@ def write_text(path, cloud: Cloud, classification=None, extra_dims=None, subset=
 
 
 def text_columns(path, cols: dict) -> None:
-    """InputError for a column a numeric text table cannot hold exactly (strings, huge integers)."""
+    """InputError for a column a numeric text table cannot hold exactly (strings, huge integers) or
+    a name its header line cannot hold (the reader splits it at white space, commas and semicolons:
+    a LAS extra dimension 'Echo Width' became two names, and the whole header was ignored)."""
     for name, a in cols.items():
+        if not name or re.search(r"[\s,;]", name) or name.startswith(("#", "//")):
+            raise fail(path, f"column name {name!r} cannot be a text column name (white space, commas and "
+                             "semicolons separate the header's names); rename it, or write .las / .laz / .npz")
         if a.dtype.kind not in "biuf":
             raise fail(path, f"column {name!r} of type {a.dtype} cannot be written to a numeric text table")
         if a.dtype.kind in "iu" and a.size and np.abs(a.astype(np.float64)).max() > 2**53:
