@@ -1573,7 +1573,10 @@ def _sizes(text: str) -> tuple:
     """Point counts of a size list (300k,1M); argparse.ArgumentTypeError on a bad one."""
     from roadx_ti.config import parse_scene_size
 
-    return tuple(parse_scene_size(v) for v in text.split(",") if v.strip())
+    sizes = tuple(parse_scene_size(v) for v in text.split(",") if v.strip())
+    if len(set(sizes)) != len(sizes):     # '1k,1k' ran each scene twice and weighed it twice in the medians
+        raise ValueError(f"sizes {text!r} name one size twice")
+    return sizes
 
 
 def _seeds(text: str):
@@ -1582,8 +1585,8 @@ def _seeds(text: str):
         seeds = tuple(range(int(a), int(b) + 1))
     else:
         seeds = tuple(int(v) for v in text.split(",") if v.strip())
-    if not seeds or min(seeds) < 0:      # '5-1' gave an empty matrix and exit 0
-        raise ValueError(f"seeds {text!r}: give seeds >= 0 as a-b (a <= b) or a,b,c")
+    if not seeds or min(seeds) < 0 or len(set(seeds)) != len(seeds):   # '5-1' gave an empty matrix and exit 0;
+        raise ValueError(f"seeds {text!r}: give seeds >= 0 as a-b (a <= b) or a,b,c")  # '0,0' each scene twice
     return seeds
 
 

@@ -852,6 +852,25 @@ def case_scale_at_the_float64_limit(d):
     return _tiny(d, _header_field(d, "scale.las", 131, "<d", 1e308), message="invalid header: scales [1e+308, 0.01")
 
 
+def case_point_count_two_beyond_the_records_before_an_evlr(d):
+    """A LAS 1.4 file with an EVLR after its 500 points whose header counts 502 (probe 19): exit 1,
+    'truncated', naming the 500 records it holds (it said 502: the EVLR's bytes counted as points;
+    with a count whose records end inside the EVLR it read the EVLR as points)."""
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.scales, header.offsets = np.full(3, 0.01), np.array([500000.0, 4500000.0, 0.0])
+    las = laspy.LasData(header)
+    world = bumpy_ground(500)
+    las.x, las.y, las.z = world[:, 0], world[:, 1], world[:, 2]
+    las.header.evlrs = laspy.vlrs.vlrlist.VLRList([laspy.VLR(user_id="surveyor", record_id=1, description="note",
+                                                             record_data=bytes(200))])
+    src = d / "in" / "evlr.las"
+    las.write(src)
+    data = bytearray(src.read_bytes())
+    struct.pack_into("<Q", data, 247, 502)
+    src.write_bytes(bytes(data))
+    return _tiny(d, src, message="the header says 502 points, the file holds 500")
+
+
 def case_vlr_count_beyond_the_header(d):
     """A header claiming 2^31 - 1 VLRs (laspy read VLRs until the machine ran out of memory):
     exit 1 from the header alone."""

@@ -1137,3 +1137,27 @@ def test_returns_of_a_pdal_text_export_and_nir_into_las_and_text_column_names(tm
     for ext in (".txt", ".csv"):
         assert "cannot be a text column name" in one_line_error(tmp_path, io.write, tmp_path / f"s{ext}", spaced)
         assert not (tmp_path / f"s{ext}").exists()
+
+
+def test_a_las_inputs_crs_and_records_that_another_format_cannot_hold_are_named(tmp_path, caplog):
+    """Probe 19: LAS to PLY / PCD / NPZ / text dropped the CRS and the VLRs without a word (a later
+    run on the output said it had no CRS); now one warning names them. LAS to LAS keeps them."""
+    from rasterio.crs import CRS
+
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.scales, header.offsets = np.full(3, 0.01), np.array([500000.0, 4500000.0, 0.0])
+    header.vlrs.append(laspy.vlrs.known.WktCoordinateSystemVlr(CRS.from_epsg(25832).to_wkt()))
+    header.global_encoding.wkt = True
+    header.vlrs.append(laspy.VLR(user_id="surveyor", record_id=7, description="note", record_data=b"flown 2021"))
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = 500000.0 + np.arange(10.0), np.full(10, 4500000.0), np.zeros(10)
+    las.write(tmp_path / "a.las")
+    cloud = io.read(tmp_path / "a.las")
+    for ext in (".ply", ".pcd", ".npz", ".txt"):
+        caplog.clear()
+        io.write(tmp_path / f"b{ext}", cloud)
+        assert "coordinate system (an OGC WKT record) and 1 other VLR/EVLR record(s) (surveyor)" in caplog.text, ext
+    caplog.clear()
+    io.write(tmp_path / "b.laz", cloud)
+    assert "holds no coordinate system" not in caplog.text
+    assert [v.user_id for v in laspy.read(tmp_path / "b.laz").header.vlrs if v.user_id == "surveyor"] == ["surveyor"]

@@ -137,6 +137,7 @@ def write(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=No
     if kind == "las":
         _las_write.write_las(path, cloud, classification=classification, extra_dims=extra_dims, subset=subset)
     else:
+        _say_what_the_format_drops(path, cloud)
         try:
             _other.WRITERS[kind](path, cloud, classification, extra_dims, subset)
         except InputError:
@@ -171,6 +172,34 @@ def check_writable(path, cloud: Cloud, result_dims: dict) -> None:
             raise fail(path, f"{cloud.source or 'the input'} cannot be written to {path.suffix}: {exc}") from None
         if kind in _other.COLUMN_CHECKS:
             _other.COLUMN_CHECKS[kind](path, columns)
+
+
+def _say_what_the_format_drops(path: Path, cloud: Cloud) -> None:
+    """A warning when a LAS input's coordinate system and records (VLRs / EVLRs) have no place in
+    a PLY / PCD / NPZ / text output (they went silently; a later run on the output had no CRS)."""
+    import logging
+
+    import laspy
+
+    if cloud.las is not None:
+        header = cloud.las.header
+    elif cloud.records_file:
+        with laspy.open(cloud.records_file) as reader:
+            header = reader.header
+    else:
+        return
+    wkt, codes = _las.crs_records(header)
+    crs_ids = (2112, 34735, 34736, 34737)         # OGC WKT, GeoTIFF keys, doubles, ascii params
+    others = [v for v in list(header.vlrs) + list(header.evlrs or [])
+              if not (v.user_id == "LASF_Projection" and v.record_id in crs_ids)
+              and not isinstance(v, laspy.vlrs.known.ExtraBytesVlr)         # written as columns
+              and v.user_id not in ("laszip encoded", "LASF_Spec")]       # the file's own layout
+    parts = [f"coordinate system ({'EPSG:' + str(codes[0]) if codes else 'an OGC WKT record'})"] if wkt or codes else []
+    parts += [f"{len(others)} other VLR/EVLR record(s) ({', '.join(sorted({v.user_id for v in others}))})"] if others else []
+    if parts:
+        logging.getLogger("roadx_ti").warning(
+            "%s: %s holds no coordinate system and no LAS records: the input's %s are not in it "
+            "(write .las / .laz to keep them)", path, path.suffix.lower(), " and ".join(parts))
 
 
 def info(path) -> dict:

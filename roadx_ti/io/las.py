@@ -137,17 +137,18 @@ def check_structure(path) -> None:
                          f"needs {POINT_SIZES[point_format]}")
     if count > MAX_POINTS:
         raise _too_many(path, count)
-    if not compressed and offset + count * record > size:
-        have = (size - offset) // record
-        raise fail(path, f"truncated LAS/LAZ file: the header says {count} points, the file holds {have}")
     if not compressed:
-        # more whole records than the header counts (a writer that did not update the count): only
-        # the counted ones are read, as every reader does; say so rather than drop points unseen
+        # where the point records end: at the EVLRs (LAS 1.4) or waveform packets (LAS 1.3) when
+        # those lie inside the file (the truncation message counted the EVLRs' bytes as points)
         end = evlr_start if minor >= 4 and evlr_count and offset <= evlr_start <= size else size
         if minor == 3 and len(head) >= 235:
-            # LAS 1.3: waveform packets may follow the points inside the file
             waveform = struct.unpack_from("<Q", head, 227)[0]
             end = waveform if offset < waveform <= end else end
+        if offset + count * record > size or (end < size and offset + count * record > end):
+            raise fail(path, f"truncated LAS/LAZ file: the header says {count} points, the file holds "
+                             f"{(end - offset) // record}")
+        # more whole records than the header counts (a writer that did not update the count): only
+        # the counted ones are read, as every reader does; say so rather than drop points unseen
         # only whole records to the end: bytes that are not (a wrong record length, trailing data)
         # are for the reader's own checks to name
         trailing = end - offset - count * record
