@@ -98,13 +98,34 @@ class Cloud:
         total = nir + red
         return np.where(total > 0, (nir - red) / np.maximum(total, 1.0), 0.0).astype(np.float32)
 
+    def returns_problem(self) -> str | None:
+        """Why the points' return numbers cannot tell pulses apart, or None (also without returns):
+        return numbers of 0 or above their pulse's number of returns on more than 1 % of the points
+        (LAS allows 1 to the number of returns; a writer that left them 0 made every point an
+        earlier return of its pulse, foliage to the roof pipeline), or one number of returns above
+        1 on every point (a constant carries no pulse)."""
+        if self.returns is None or not self.n:
+            return None
+        number, count = self.returns[:, 0], self.returns[:, 1]
+        if not count.any():
+            return None      # no returns recorded (photogrammetry, converted clouds): nothing to read
+        bad = np.count_nonzero((number == 0) | (count == 0) | (number > count))
+        if bad > 0.01 * self.n:
+            return (f"{100 * bad / self.n:.0f} % of the points have a return number of 0 or above their "
+                    "number of returns")
+        top = int(count.max())
+        if top > 1 and int(count.min()) == top:
+            return f"every point has the same number of returns ({top})"
+        return None
+
     def _split_pulses(self):
-        """(return number, number of returns) per point; None without return information, or when
-        no pulse has more than one return (nothing to tell apart)."""
+        """(return number, number of returns) per point; None without return information, when
+        no pulse has more than one return (nothing to tell apart), or when returns_problem says
+        they cannot be read."""
         if self.returns is None:
             return None
         number, count = self.returns[:, 0], self.returns[:, 1]
-        if not (count > 1).any():
+        if not (count > 1).any() or self.returns_problem() is not None:
             return None
         return number, count
 

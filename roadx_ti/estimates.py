@@ -104,7 +104,7 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     flat = np.ascontiguousarray(np.column_stack([xyz[:, :2], np.zeros(len(xyz), np.float32)]))
     nn_plan = knn(flat, 1)[1][:, 0]
     out["point_spacing_m"] = round(float(np.median(nn_plan) * np.sqrt(len(xyz) / total)), 4)
-    if cloud.returns is not None and (cloud.returns[pick, 1] > 1).any():
+    if cloud.returns is not None and (cloud.returns[pick, 1] > 1).any() and cloud.returns_problem() is None:
         first = np.flatnonzero(cloud.returns[pick, 0] <= 1)
         if len(first) >= 8:
             nn_first = knn(np.ascontiguousarray(flat[first]), 1)[1][:, 0]

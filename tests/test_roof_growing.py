@@ -705,6 +705,30 @@ def test_foliage_returns_stop_growth_without_colour(ti_arch):
     assert tree_as_roof < 0.5 * (without[tree] == 6).mean()
 
 
+@pytest.mark.parametrize("broken", ["return_number_0", "number_of_returns_7", "swapped", "none_recorded"])
+def test_return_numbers_that_cannot_be_read_are_no_vegetation_cue(broken, caplog):
+    """Probe 20: return numbers left 0, one number of returns on every point, or return numbers above
+    their pulse's count made the roof pipeline read foliage everywhere (an IGN tile's kappa 0.924 ->
+    0.840): such returns are not used, with a warning, and the roofs are those of no returns at all.
+    Returns that were never recorded (all 0) are no returns, silently."""
+    from roadx_ti.cloud import Cloud
+
+    xyz, _, part = house_and_tree_scene()
+    good = np.ones((len(xyz), 2), np.uint8)
+    good[part == 4] = [1, 2]
+    bad = {"return_number_0": np.column_stack([np.zeros(len(xyz)), good[:, 1]]),
+           "number_of_returns_7": np.column_stack([good[:, 0], np.full(len(xyz), 7)]),
+           "swapped": good[:, ::-1], "none_recorded": np.zeros((len(xyz), 2))}[broken].astype(np.uint8)
+    assert Cloud.from_world(xyz, origin=np.zeros(3), returns=good).returns_problem() is None
+    cloud = Cloud.from_world(xyz, origin=np.zeros(3), returns=bad)
+    assert (cloud.returns_problem() is None) == (broken == "none_recorded")
+    assert cloud.penetrated() is None and cloud.later_returns() is None
+    caplog.set_level("WARNING", logger="roadx_ti")
+    labels = run_roof_stages(cloud)[0].labels
+    assert ("return numbers are not used" in caplog.text) == (broken != "none_recorded")
+    assert np.array_equal(labels, run_roof_stages(Cloud.from_world(xyz, origin=np.zeros(3)))[0].labels)
+
+
 def gable_house_scene(seed=0, spacing=0.35, noise=0.02):
     """A 12 x 9 m gable roof (eaves at 6 m, ridge at 8.25 m along x) overhanging its walls by
     0.4 m, its four walls (returns from 0.3 m up to just below the eave), low plants around it
