@@ -13,6 +13,8 @@ Conventions:
   adds d > mu - s*sigma.
 """
 
+import math
+
 import numpy as np
 
 from .common import (INT32_MAX, f32_order_key, is_ndarray, kernel_array, length, like_input, ndarray, points_array,
@@ -111,18 +113,25 @@ def _is_picked(picked: ti.template(), c: ti.i32, rank: ti.i32, i: ti.i32) -> ti.
 
 @ti.kernel
 def _flag_low_runs(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), picked: ti.types.ndarray(dtype=ti.i32, ndim=2),
-                   max_cluster: ti.i32, threshold: ti.f32, noise: ti.types.ndarray(dtype=ti.u8, ndim=1),
+                   max_cluster: ti.i32, threshold: ti.f32, deep_threshold: ti.f32,
+                   noise: ti.types.ndarray(dtype=ti.u8, ndim=1),
                    active: ti.types.ndarray(dtype=ti.u8, ndim=1)) -> ti.i32:
-    """Per cell: the first gap above threshold among its lowest max_cluster + 1 points flags the
-    points below it; active[c] = whether it did (only such cells can flag more)."""
+    """Per cell: the first gap above threshold among its lowest picked points flags the points
+    below it when they are at most max_cluster, or, when the gap is above deep_threshold, at most
+    as many as were picked less one; active[c] = whether it did (only such cells can flag more)."""
     flagged = 0
     for c in range(picked.shape[0]):
         active[c] = ti.u8(0)
         run = -1
-        for j in range(max_cluster):
+        gap = 0.0
+        for j in range(picked.shape[1] - 1):
             if run < 0 and picked[c, j + 1] != INT32_MAX:
-                if xyz[picked[c, j + 1], 2] - xyz[picked[c, j], 2] > threshold:
+                step = xyz[picked[c, j + 1], 2] - xyz[picked[c, j], 2]
+                if step > threshold:
                     run = j
+                    gap = step
+        if run >= max_cluster and gap <= deep_threshold:
+            run = -1
         if run >= 0:
             for j in range(run + 1):
                 noise[picked[c, j]] = ti.u8(1)
@@ -132,12 +141,13 @@ def _flag_low_runs(xyz: ti.types.ndarray(dtype=ti.f32, ndim=2), picked: ti.types
 
 
 def low_noise(xyz, cell: float = 10.0, threshold: float = 1.0, max_cluster: int = 1, max_rounds: int = 16,
-              origin=None):
+              origin=None, deep_cluster: int = 0, deep_threshold: float = math.inf):
     """Low-noise flags (uint8 (n,), 1 = noise) by extended local minimum over plan cells of edge
     ``cell`` m (from ``origin`` = (x0, y0) when given, so that cells can follow a world lattice):
     at most ``max_rounds`` rounds, each flagging per cell its lowest remaining points, at most
     ``max_cluster`` of them, when more than ``threshold`` m separate them from the next one (the
-    first such gap from below; max_cluster 1 is filters.elm's rule). A cell needs a point above
+    first such gap from below; max_cluster 1 is filters.elm's rule); under a gap of more than
+    ``deep_threshold`` m, up to ``deep_cluster`` of them (0: no such rule). A cell needs a point above
     the gap, so one with a single point left flags nothing. Ties in z go to the lowest index: the
     flags do not depend on thread timing or point order beyond that. numpy in, numpy out; a Taichi
     ndarray in, an ndarray out."""
@@ -147,6 +157,10 @@ def low_noise(xyz, cell: float = 10.0, threshold: float = 1.0, max_cluster: int 
         raise ValueError(f"threshold must be >= 0, got {threshold}")
     if not 1 <= max_cluster <= MAX_CLUSTER:
         raise ValueError(f"max_cluster must be in 1..{MAX_CLUSTER}, got {max_cluster}")
+    if not (isinstance(deep_cluster, (int, np.integer)) and 0 <= deep_cluster <= MAX_CLUSTER):
+        raise ValueError(f"deep_cluster must be a whole number in 0..{MAX_CLUSTER}, got {deep_cluster!r}")
+    if not deep_threshold >= threshold:
+        raise ValueError(f"deep_threshold must be >= threshold ({threshold}), got {deep_threshold}")
     pts = points_array(xyz)
     n = length(pts)
     if n == 0:
@@ -155,16 +169,18 @@ def low_noise(xyz, cell: float = 10.0, threshold: float = 1.0, max_cluster: int 
     cell_of, cells = plan_cells(pts, cell, origin)
     cell_of = kernel_array(cell_of, "int32")
     key = ndarray(ti.i32, (cells,))
-    picked = ndarray(ti.i32, (cells, max_cluster + 1))
+    width = max(max_cluster, deep_cluster) + 1       # the lowest points of a cell that are read
+    picked = ndarray(ti.i32, (cells, width))
     active = ndarray(ti.u8, (cells,))
     members = kernel_array(np.arange(n, dtype=np.int32), "int32")
     for _ in range(max_rounds):
         picked.fill(INT32_MAX)
-        for rank in range(max_cluster + 1):
+        for rank in range(width):
             _fill_i32(key, INT32_MAX)
             _lowest_key(pts, cell_of, members, noise, picked, rank, key)
             _pick_lowest(pts, cell_of, members, noise, picked, rank, key)
-        if _flag_low_runs(pts, picked, max_cluster, float(threshold), noise, active) == 0:
+        deep = min(float(deep_threshold), 3.0e38) if deep_cluster > max_cluster else 3.0e38
+        if _flag_low_runs(pts, picked, max_cluster, float(threshold), deep, noise, active) == 0:
             break
         # the next round reads only the points of cells that flagged (the others' verdict is final)
         in_active = to_numpy(active)[to_numpy(cell_of)] != 0

@@ -7,10 +7,11 @@ import pytest
 from roadx_ti.kernels import outliers
 
 
-def reference_low_noise(xyz, cell, threshold, max_cluster, max_rounds, origin):
+def reference_low_noise(xyz, cell, threshold, max_cluster, max_rounds, origin, deep_cluster=0, deep_threshold=np.inf):
     """Per cell, points by (z, index), rounds: the first gap of more than ``threshold`` among the
-    lowest max_cluster + 1 remaining points makes the points under it noise; a round without one
-    ends the cell."""
+    lowest max(max_cluster, deep_cluster) + 1 remaining points makes the points under it noise when
+    they are at most max_cluster, or the gap exceeds ``deep_threshold``; a round without one ends
+    the cell."""
     xyz = np.asarray(xyz, np.float32)
     col = np.floor((xyz[:, 0] - np.float32(origin[0])) / np.float32(cell)).astype(np.int64)
     row = np.floor((xyz[:, 1] - np.float32(origin[1])) / np.float32(cell)).astype(np.int64)
@@ -19,8 +20,11 @@ def reference_low_noise(xyz, cell, threshold, max_cluster, max_rounds, origin):
         members = np.flatnonzero((col == key[0]) & (row == key[1]))
         members = list(members[np.lexsort((members, xyz[members, 2]))])
         for _ in range(max_rounds):
-            low = members[: max_cluster + 1]
+            low = members[: max(max_cluster, deep_cluster) + 1]
             gap = [j for j in range(len(low) - 1) if xyz[low[j + 1], 2] - xyz[low[j], 2] > np.float32(threshold)]
+            if gap and gap[0] >= max_cluster and not xyz[low[gap[0] + 1], 2] - xyz[low[gap[0]], 2] > np.float32(
+                    min(deep_threshold, 3.0e38)):
+                gap = []
             if not gap:
                 break
             for i in low[: gap[0] + 1]:
@@ -53,6 +57,11 @@ def test_low_noise_equals_sequential_reference(ti_arch, seed):
         got = np.asarray(outliers.low_noise(xyz, cell, threshold, cluster, rounds, origin=origin))
         ref = reference_low_noise(xyz, cell, threshold, cluster, rounds, origin)
         assert np.array_equal(got, ref), (cell, threshold, cluster, rounds, int((got != ref).sum()))
+    for cluster, deep_cluster, deep_threshold in ((2, 4, 5.0), (1, 8, 2.0), (3, 2, 4.0)):
+        got = np.asarray(outliers.low_noise(xyz, 10.0, 1.0, cluster, 16, origin=(0.0, 0.0), deep_cluster=deep_cluster,
+                                            deep_threshold=deep_threshold))
+        ref = reference_low_noise(xyz, 10.0, 1.0, cluster, 16, (0.0, 0.0), deep_cluster, deep_threshold)
+        assert np.array_equal(got, ref), (cluster, deep_cluster, deep_threshold, int((got != ref).sum()))
     single, pairs = (np.asarray(outliers.low_noise(xyz, 10.0, 1.0, m, origin=(0.0, 0.0))) != 0 for m in (1, 2))
     assert not single[part != 2].any() and not pairs[part != 2].any()   # terrain and roofs: never
     assert pairs[part == 2].mean() > 0.8 > single[part == 2].mean()      # low returns, pairs too
@@ -116,3 +125,45 @@ def test_roof_pipeline_cloth_not_held_down_by_low_returns():
     assert scores["type2"] < 0.01, scores                  # 3.8 % without the stage
     low = result.classification == 7
     assert low.sum() > 0 and (cloud.classification[low] == 7).all()
+
+
+def test_a_few_returns_far_under_the_terrain_are_noise_and_a_pit_is_not(ti_arch):
+    """Probe 20: three returns 24 m under a tile, chained within 1 m (a run of 3: more than
+    max_cluster 2), held the cloth under the whole tile. Under a gap deeper than deep_threshold, up to
+    deep_cluster points are noise; a shallow run of 3 and a deep pit of 12 points are not."""
+    rng = np.random.default_rng(4)
+    xy = rng.uniform(0, 30, (4000, 2))
+    terrain = np.column_stack([xy, 0.02 * xy[:, 0] + rng.normal(0, 0.02, len(xy))])
+    deep = np.array([[5.0, 5.0, -24.0], [5.6, 5.3, -23.2], [6.1, 5.2, -23.0]])        # 23 m under its cell
+    shallow = np.array([[15.0, 5.0, -2.0], [15.5, 5.2, -1.6], [15.2, 5.6, -1.7]])     # 1.6-2 m under
+    pit = np.column_stack([rng.uniform(24.0, 25.0, (12, 2)) + [0, -20.0], np.full(12, -7.0)])   # 12 points 7 m down
+    xyz = np.concatenate([terrain, deep, shallow, pit]).astype(np.float32)
+    part = np.repeat([0, 1, 2, 3], [len(terrain), 3, 3, 12])
+    off = np.asarray(outliers.low_noise(xyz, 10.0, 1.0, 2, origin=(0.0, 0.0))) != 0
+    on = np.asarray(outliers.low_noise(xyz, 10.0, 1.0, 2, origin=(0.0, 0.0), deep_cluster=4, deep_threshold=5.0)) != 0
+    assert not off[part == 1].any() and on[part == 1].all()
+    assert not on[part == 2].any() and not on[part == 3].any() and not on[part == 0].any()
+    with pytest.raises(ValueError, match="deep_threshold must be >= threshold"):
+        outliers.low_noise(xyz, 10.0, 1.0, 2, deep_cluster=4, deep_threshold=0.5)
+
+
+def test_the_stage_takes_deep_runs_under_the_terrain_not_a_courtyard_under_roofs():
+    """The deep rule reads the cells around: three returns 23 m under the terrain are noise; the
+    four ground points of a courtyard whose cell is otherwise roof, 8 m above them, are not (the
+    street beside it lies at their level)."""
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.low_noise import LowNoise
+
+    rng = np.random.default_rng(5)
+    street = np.column_stack([rng.uniform(0, 40, 3000), rng.uniform(0, 10, 3000), rng.normal(0, 0.02, 3000)])
+    roof = np.column_stack([rng.uniform(0, 40, 3000), rng.uniform(10, 20, 3000), 8.0 + rng.normal(0, 0.02, 3000)])
+    courtyard = np.array([[25.0, 15.0, 0.0], [25.5, 15.2, 0.02], [25.2, 15.6, -0.01], [25.7, 15.5, 0.01]])
+    deep = np.array([[5.0, 5.0, -23.0], [5.6, 5.3, -22.4], [6.1, 5.2, -22.2]])
+    roof = roof[~((np.abs(roof[:, 0] - 25.4) < 1.5) & (np.abs(roof[:, 1] - 15.3) < 1.5))]
+    world = np.concatenate([street, roof, courtyard, deep]) + [651_200.0, 6_862_100.0, 40.0]
+    part = np.repeat([0, 1, 2, 3], [len(street), len(roof), len(courtyard), len(deep)])
+    result = LowNoise().run(Cloud.from_world(world), StageContext())
+    noise = ~result.keep
+    assert noise[part == 3].all() and not noise[part == 2].any() and not noise[part < 2].any()
+    assert result.info["deep"] == 3
