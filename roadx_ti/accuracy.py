@@ -1575,7 +1575,7 @@ def _sizes(text: str) -> tuple:
 
     sizes = tuple(parse_scene_size(v) for v in text.split(",") if v.strip())
     if len(set(sizes)) != len(sizes):     # '1k,1k' ran each scene twice and weighed it twice in the medians
-        raise ValueError(f"sizes {text!r} name one size twice")
+        raise argparse.ArgumentTypeError(f"{text!r} names one size twice")
     return sizes
 
 
@@ -1585,8 +1585,10 @@ def _seeds(text: str):
         seeds = tuple(range(int(a), int(b) + 1))
     else:
         seeds = tuple(int(v) for v in text.split(",") if v.strip())
-    if not seeds or min(seeds) < 0 or len(set(seeds)) != len(seeds):   # '5-1' gave an empty matrix and exit 0;
-        raise ValueError(f"seeds {text!r}: give seeds >= 0 as a-b (a <= b) or a,b,c")  # '0,0' each scene twice
+    if not seeds or min(seeds) < 0:      # '5-1' gave an empty matrix and exit 0
+        raise ValueError(f"seeds {text!r}: give seeds >= 0 as a-b (a <= b) or a,b,c")
+    if len(set(seeds)) != len(seeds):    # '0,0' ran each scene twice and weighed it twice in the medians
+        raise argparse.ArgumentTypeError(f"{text!r} names one seed twice")
     return seeds
 
 

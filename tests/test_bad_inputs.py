@@ -626,8 +626,9 @@ def case_strays_road_pipeline(d):
 
 
 def case_strays_ground_pipeline(d):
-    """20,000 ground points and two strays through the cloth alone (configs/ground.yaml): the
-    strays get no cloth (class 1), the ground stays ground."""
+    """20,000 ground points and two strays through the ground pipeline (configs/ground.yaml: low
+    noise, then the cloth): the strays get no cloth (class 1; each is alone in its cell, so low
+    noise takes neither), the ground stays ground."""
     return _stray_case(d, bumpy_ground(20_000, side=40.0), CONFIGS / "ground.yaml", classes={1, 2})
 
 

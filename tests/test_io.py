@@ -1122,6 +1122,11 @@ def test_returns_of_a_pdal_text_export_and_nir_into_las_and_text_column_names(tm
     io.write(tmp_path / "pdal.txt", pdal)
     header = (tmp_path / "pdal.txt").read_text().splitlines()[0]
     assert "return_number" not in header and "ReturnNumber" in header        # written back once, as it came
+    io.write(tmp_path / "pdal.las", pdal)                                   # to LAS: the returns fields
+    las = laspy.read(tmp_path / "pdal.las")
+    assert np.array_equal(np.asarray(las.return_number), 1 + np.arange(20) % 2)
+    assert np.all(np.asarray(las.number_of_returns) == 2)
+    assert not set(las.point_format.extra_dimension_names) & {"ReturnNumber", "NumberOfReturns"}
 
     rgb = np.full((20, 3), 200, np.uint16)
     nir = np.arange(20, dtype=np.uint16) * 1000

@@ -148,7 +148,7 @@ def test_a_few_returns_far_under_the_terrain_are_noise_and_a_pit_is_not(ti_arch)
 
 
 def test_the_stage_takes_deep_runs_under_the_terrain_not_a_courtyard_under_roofs():
-    """The deep rule reads the cells around: three returns 23 m under the terrain are noise; the
+    """The deep rule reads the points around: three returns 23 m under the terrain are noise; the
     four ground points of a courtyard whose cell is otherwise roof, 8 m above them, are not (the
     street beside it lies at their level)."""
     from roadx_ti.cloud import Cloud
@@ -167,3 +167,35 @@ def test_the_stage_takes_deep_runs_under_the_terrain_not_a_courtyard_under_roofs
     noise = ~result.keep
     assert noise[part == 3].all() and not noise[part == 2].any() and not noise[part < 2].any()
     assert result.info["deep"] == 3
+
+
+@pytest.mark.parametrize("across_a_border", [False, True])
+def test_an_alley_under_roofs_is_ground_and_a_deep_run_across_cells_is_noise(across_a_border):
+    """Review of the deep rule: a 1 m alley between roofs 9 m high, about 3 ground returns per 10 m
+    cell along 60 m to a street, lost all 17 of its points (each cell's few were judged alone); they
+    join their neighbours in the next cells up to the street's level, and stay. Three returns 24 m
+    under the ground, astride a cell border or not, are noise."""
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from roadx_ti.stages.low_noise import LowNoise, LowNoiseOptions
+
+    rng = np.random.default_rng(1)
+    roof = np.column_stack([rng.uniform(0, 60, 3000), rng.uniform(0, 30, 3000), 9.0 + rng.normal(0, 0.02, 3000)])
+    roof = roof[(roof[:, 1] < 14.8) | (roof[:, 1] > 16.2)]
+    ax = np.arange(1.0, 60.0, 3.5)
+    alley = np.column_stack([ax, 15.5 + rng.uniform(-0.3, 0.3, len(ax)), rng.normal(0, 0.02, len(ax))])
+    street = np.column_stack([rng.uniform(60, 70, 300), rng.uniform(0, 30, 300), rng.normal(0, 0.02, 300)])
+    roof = np.concatenate([roof, street])           # (the street: part 0 too)
+    deep = np.array([[34.0, 25.0, -24.0], [34.5, 25.3, -23.3], [34.9, 25.1, -23.1]])
+    if across_a_border:         # three in one cell, a fourth in the next (cells are 10 m from x 651,200)
+        deep = np.concatenate([deep + [5.0, 0, 0], [[40.3, 25.2, -23.5]]])
+    world = np.concatenate([roof, alley, deep]) + [651_200.0, 6_862_100.0, 40.0]
+    part = np.repeat([0, 1, 2], [len(roof), len(alley), len(deep)])
+    result = LowNoise().run(Cloud.from_world(world), StageContext())
+    noise = ~result.keep
+    single_cell = ~LowNoise(LowNoiseOptions(deep_cluster=0)).run(Cloud.from_world(world), StageContext()).keep
+    # filters.elm's own rule takes the cells of one or two alley points (as before); the deep rule no more
+    assert np.array_equal(noise[part == 1], single_cell[part == 1]) and single_cell[part == 1].sum() <= 2
+    assert noise[part == 2].all() and not noise[part == 0].any() and result.info["deep"] == 3
+    # a larger threshold raises the deep rule's with it (a config with threshold 6 was refused)
+    LowNoise(LowNoiseOptions(threshold=6.0))

@@ -137,13 +137,13 @@ def write(path, cloud: Cloud, *, classification=None, extra_dims=None, subset=No
     if kind == "las":
         _las_write.write_las(path, cloud, classification=classification, extra_dims=extra_dims, subset=subset)
     else:
-        _say_what_the_format_drops(path, cloud)
         try:
             _other.WRITERS[kind](path, cloud, classification, extra_dims, subset)
         except InputError:
             raise
         except ValueError as exc:      # a column the format cannot hold (other.writable_columns)
             raise fail(path, f"cannot be written: {' '.join(str(exc).split())}") from None
+        _say_what_the_format_drops(path, cloud)     # once written (a refused write drops nothing)
 
 
 WRITABLE_CHUNK = 1 << 20    # points check_writable converts at a time
@@ -194,7 +194,10 @@ def _say_what_the_format_drops(path: Path, cloud: Cloud) -> None:
               if not (v.user_id == "LASF_Projection" and v.record_id in crs_ids)
               and not isinstance(v, laspy.vlrs.known.ExtraBytesVlr)         # written as columns
               and v.user_id not in ("laszip encoded", "LASF_Spec")]       # the file's own layout
-    parts = [f"coordinate system ({'EPSG:' + str(codes[0]) if codes else 'an OGC WKT record'})"] if wkt or codes else []
+    crs_vlrs = [v for v in list(header.vlrs) + list(header.evlrs or [])
+                if v.user_id == "LASF_Projection" and v.record_id in crs_ids]
+    named = "EPSG:" + str(codes[0]) if codes else "an OGC WKT record" if wkt else "GeoTIFF keys"
+    parts = [f"coordinate system ({named})"] if wkt or codes or crs_vlrs else []
     parts += [f"{len(others)} other VLR/EVLR record(s) ({', '.join(sorted({v.user_id for v in others}))})"] if others else []
     if parts:
         logging.getLogger("roadx_ti").warning(

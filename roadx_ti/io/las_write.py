@@ -190,6 +190,11 @@ def fits_new_file(local: np.ndarray) -> bool:
     return not local.size or float(np.abs(local).max()) / NEW_FILE_SCALE <= 2**31 - 1.5
 
 
+# column names (lower case, without underscores) that are the LAS returns fields (io.other reads
+# PDAL writers.text's ReturnNumber / NumberOfReturns as the returns)
+RETURN_FIELDS = {"returnnumber": "return_number", "numberofreturns": "number_of_returns"}
+
+
 def las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> laspy.LasData:
     n = cloud.n
     has_rgb = cloud.rgb is not None
@@ -215,8 +220,11 @@ def las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> la
             # a column read under a standard name whose values that field cannot hold (classes of 300)
             raise fail(path, f"column {name!r} holds values the LAS {name} field cannot (e.g. {_example(a)}); "
                              "it would also hide the result's own; fix its values or rename it")
+        alias = RETURN_FIELDS.get(name.lower().replace("_", ""))
         if name in standard:
             standard_cols[name] = a
+        elif alias in standard and alias not in columns:
+            standard_cols[alias] = a      # PDAL's ReturnNumber / NumberOfReturns: the LAS fields
         else:
             extra[name] = _extra_dim_values(path, name, a)
     local = cloud.xyz.astype(np.float64) if index is None else cloud.xyz[index].astype(np.float64)
