@@ -1164,7 +1164,7 @@ def case_ground_config_run_as_roof(d):
     """The ground config (cloth_ground labels class 2) with pipeline = roof: exit 2 (it wrote class
     2 and scored class 6: type I 100 %)."""
     return _run(CONFIGS / "ground.yaml", d, _ground_laz(d), extra=["--set", "pipeline=roof"], code=2,
-                message="pipeline = 'roof', but stages[0] cloth_ground labels class 2 (ground), not 6")
+                message="pipeline = 'roof', but stages[1] cloth_ground labels class 2 (ground), not 6")
 
 
 def case_withheld_points(d):

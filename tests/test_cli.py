@@ -347,8 +347,10 @@ def test_config_copy_names_the_input_absolutely_and_tiled_summary_has_the_legend
     assert written["input"]["paths"] == [str(src.resolve())]
     summary = json.loads((tmp_path / "out" / "t.summary.json").read_text())
     assert summary["backend"] == "cpu" and summary["roadx_label"] == {"0": "reached the last stage",
-                                                                      "1": "removed by cloth_ground"}
-    assert [s["stage"] for s in summary["stages"]] == ["cloth_ground"] and summary["stages"][0]["points_in"] >= 400
+                                                                      "1": "removed by low_noise",
+                                                                      "2": "removed by cloth_ground"}
+    assert [s["stage"] for s in summary["stages"]] == ["low_noise", "cloth_ground"]
+    assert summary["stages"][1]["points_in"] >= 400
     assert "z_offset" not in json.loads((tmp_path / "out" / "t.json").read_text())
 
 

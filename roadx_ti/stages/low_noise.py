@@ -64,9 +64,9 @@ class LowNoise(Stage):
     @classmethod
     def reach(cls, options, estimates=None) -> float:
         # a point's verdict reads its own (world-aligned) cell; with the deep rule, the cells
-        # around it and the deep runs chained to it (a chain longer than the buffer, rare, may
-        # read differently in a tile)
-        cells = 3.0 if options.deep_cluster > options.max_cluster else 1.0
+        # around it and the deep runs chained to it (a chain reaching past the buffer, a rare
+        # thing, may read differently in a tile)
+        cells = 2.0 if options.deep_cluster > options.max_cluster else 1.0
         return max(MIN_BUFFER, cells * float(options.cell))
 
     def run(self, cloud: Cloud, ctx: StageContext) -> StageResult:
