@@ -1630,14 +1630,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def main(args) -> int:
     from roadx_ti import backend, jsonio
-    from roadx_ti.cli import make_output_folder
+    from roadx_ti.cli import UsageError, make_output_folder
     from roadx_ti.io.atomic import atomic_output
 
+    large = _large(args.road_large)
+    if args.task != "roof" and large in _sizes(args.road_sizes) and 0 in _seeds(args.road_seeds):
+        # the larger scene is seed 0 at that size: the matrix held it already (weighed twice)
+        raise UsageError(f"accuracy: --road-large {args.road_large} is one of --road-sizes {args.road_sizes} "
+                         "at seed 0, which the matrix runs already; give another size or --road-large none")
     out = Path(args.out)
     make_output_folder(out, "the accuracy report (--out) goes into a folder")
     backend.init(args.backend)
     tasks = ["road", "roof"] if args.task == "all" else [args.task]
-    large = _large(args.road_large)
     road_rows = road_datasets(_sizes(args.road_sizes), _seeds(args.road_seeds), (large, 0) if large else None)
     roof_rows = roof_datasets(_sizes(args.roof_sizes), _seeds(args.roof_seeds))
     results = {task: evaluate(task, out, road_rows if task == "road" else roof_rows) for task in tasks}

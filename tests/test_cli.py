@@ -89,6 +89,7 @@ def test_eval_count_mismatch_is_data_error(tmp_path, road_scene):
                                           (("--roof-seeds", "5-1"), "--roof-seeds"),        # was an empty matrix
                                           (("--road-seeds", "0,0"), "names one seed twice"),  # ran each scene twice
                                           (("--road-large", "none", "--road-sizes", "1k,1k"), "names one size twice"),
+                                          (("--road-sizes", "1k", "--road-seeds", "0", "--road-large", "1k"), "--road-large"),
                                           (("--road-sizes", "inf"), "--road-sizes")])     # was an OverflowError
 def test_accuracy_bad_matrix_is_usage_error(tmp_path, args, option):
     """A typo in the accuracy matrix is a one-line usage error before any scene is built."""
