@@ -189,13 +189,12 @@ def _say_what_the_format_drops(path: Path, cloud: Cloud) -> None:
     else:
         return
     wkt, codes = _las.crs_records(header)
+    records = list(header.vlrs) + list(header.evlrs or [])
     crs_ids = (2112, 34735, 34736, 34737)         # OGC WKT, GeoTIFF keys, doubles, ascii params
-    others = [v for v in list(header.vlrs) + list(header.evlrs or [])
-              if not (v.user_id == "LASF_Projection" and v.record_id in crs_ids)
+    crs_vlrs = [v for v in records if v.user_id == "LASF_Projection" and v.record_id in crs_ids]
+    others = [v for v in records if v not in crs_vlrs
               and not isinstance(v, laspy.vlrs.known.ExtraBytesVlr)         # written as columns
               and v.user_id not in ("laszip encoded", "LASF_Spec")]       # the file's own layout
-    crs_vlrs = [v for v in list(header.vlrs) + list(header.evlrs or [])
-                if v.user_id == "LASF_Projection" and v.record_id in crs_ids]
     named = "EPSG:" + str(codes[0]) if codes else "an OGC WKT record" if wkt else "GeoTIFF keys"
     parts = [f"coordinate system ({named})"] if wkt or codes or crs_vlrs else []
     parts += [f"{len(others)} other VLR/EVLR record(s) ({', '.join(sorted({v.user_id for v in others}))})"] if others else []

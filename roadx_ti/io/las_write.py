@@ -195,6 +195,11 @@ def fits_new_file(local: np.ndarray) -> bool:
 RETURN_FIELDS = {"returnnumber": "return_number", "numberofreturns": "number_of_returns"}
 
 
+def return_field(name: str) -> str | None:
+    """The LAS returns field a column name stands for ('ReturnNumber', 'return_number', ...), or None."""
+    return RETURN_FIELDS.get(name.lower().replace("_", ""))
+
+
 def las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> laspy.LasData:
     n = cloud.n
     has_rgb = cloud.rgb is not None
@@ -220,7 +225,7 @@ def las_from_arrays(path, cloud: Cloud, classification, extra_dims, index) -> la
             # a column read under a standard name whose values that field cannot hold (classes of 300)
             raise fail(path, f"column {name!r} holds values the LAS {name} field cannot (e.g. {_example(a)}); "
                              "it would also hide the result's own; fix its values or rename it")
-        alias = RETURN_FIELDS.get(name.lower().replace("_", ""))
+        alias = return_field(name)
         if name in standard:
             standard_cols[name] = a
         elif alias in standard and alias not in columns:

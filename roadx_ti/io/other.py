@@ -25,7 +25,7 @@ import numpy as np
 
 from ..cloud import Cloud, detect_color_depth, stored_8bit_scale
 from .atomic import InputError, atomic_output, fail
-from .las_write import per_point, point_index
+from .las_write import per_point, point_index, return_field
 
 log = logging.getLogger(__name__)
 
@@ -124,8 +124,8 @@ def writable_columns(cloud: Cloud, classification, extra_dims, subset):
         if classes.size and (classes.min() < 0 or classes.max() > 255):
             raise ValueError("classification values must be 0-255")
         cols["classification"] = classes.astype(np.uint8)
-    own_columns = {k.lower().replace("_", "") for k in cloud.attributes}   # (ReturnNumber: _returns)
-    if cloud.returns is not None and not {"returnnumber", "numberofreturns"} & own_columns:
+    own_columns = {k.lower() for k in cloud.attributes}
+    if cloud.returns is not None and not any(return_field(k) for k in cloud.attributes):   # (ReturnNumber: _returns)
         returns = pick(cloud.returns)
         cols["return_number"], cols["number_of_returns"] = returns[:, 0].copy(), returns[:, 1].copy()
     if cloud.nir is not None and "nir" not in own_columns:
@@ -157,11 +157,11 @@ def _returns(path, attributes: dict) -> np.ndarray | None:
     """(n, 2) uint8 return number / number of returns from columns of those names, with or without
     underscores in any case (PDAL's writers.text names them ReturnNumber, NumberOfReturns; they
     stay attributes too, written back as they came), else None."""
-    lower = {k.lower().replace("_", ""): k for k in attributes}
-    if "returnnumber" not in lower or "numberofreturns" not in lower:
+    field = {return_field(k): k for k in attributes}
+    if "return_number" not in field or "number_of_returns" not in field:
         return None
-    pair = np.column_stack([np.asarray(attributes[lower["returnnumber"]]),
-                            np.asarray(attributes[lower["numberofreturns"]])])
+    pair = np.column_stack([np.asarray(attributes[field["return_number"]]),
+                            np.asarray(attributes[field["number_of_returns"]])])
     if pair.size and (np.nanmin(pair) < 0 or np.nanmax(pair) > 255 or not np.array_equal(pair, np.round(pair))):
         # 300 or -1 were clipped to 255 / 0 silently; the columns stay attributes as they came
         log.warning("%s: return_number / number_of_returns hold values that are no return counts (whole numbers "

@@ -26,6 +26,7 @@ from pydantic import Field, model_validator
 
 from roadx_ti.cloud import Cloud
 from roadx_ti.kernels.outliers import MAX_CLUSTER, low_noise
+from roadx_ti.sorted_keys import find
 from roadx_ti.stages.base import MIN_BUFFER, MIN_CELL, Stage, StageContext, StageOptions, StageResult
 
 CLASS_LOW_NOISE = 7     # ASPRS: low point (noise)
@@ -120,9 +121,7 @@ def under_the_terrain(xyz, candidates, noise, corner, cell: float, depth: float)
     np.minimum.at(floor, inverse, xyz[kept, 2].astype(np.float64))
     around = np.full(len(idx), np.inf)
     for step in steps:
-        k = key[idx] + step
-        at = np.clip(np.searchsorted(cells, k), 0, max(len(cells) - 1, 0))
-        hit = (cells[at] == k) if len(cells) else np.zeros(len(idx), bool)
+        at, hit = find(cells, key[idx] + step)
         around[hit] = np.minimum(around[hit], floor[at[hit]])
     under = xyz[idx, 2] < around - depth
     # groups over the candidates and the single-cell rule's points near them

@@ -128,9 +128,9 @@ class RoofGrowing(Stage):
         colour = {}
         vegetation_points = None
         penetrated = cloud.penetrated() if o.use_returns else None
-        if o.use_returns and cloud.returns_problem() is not None:
-            ctx.log.warning("roof_growing: the input's return numbers are not used as a vegetation cue: %s",
-                            cloud.returns_problem())
+        problem = cloud.returns_problem() if o.use_returns else None
+        if problem is not None:
+            ctx.log.warning("roof_growing: the input's return numbers are not used as a vegetation cue: %s", problem)
         cues = []
         ndvi_points = None
         if o.use_color and cloud.has_color:
