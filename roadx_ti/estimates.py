@@ -19,6 +19,11 @@ tile), logged, and written to the summary JSON:
   neighbour statistics above are measured over those (a duplicate's nearest neighbour is its twin
   at 0 m, which made spacing, noise and colour noise 0); from a sample, the copies per position
   are estimated from the twins drawn together (``copies_per_position``);
+- near copies (a delivery holding an overlap twice, 1 cm or 1 mm apart: each point's nearest
+  neighbour its own copy): where more than NEAR_COPY_SHARE of the sample's points have neighbours
+  closer than NEAR_COPY_RATIO times the next one (about 4 % of points scattered at random do), the
+  spacings are measured to the nearest neighbour past those copies (the copies' 1 cm spacing made
+  every radius and cell derived from it 1 cm, and the roof pipeline found no roof);
 - ``terrain_grade``: median grade of the terrain (rise over run), from the lowest sample point of
   each TERRAIN_CELL plan cell (bar the lowest 1 %: low noise) lowered to its 5 x 5 cells' lowest
   (buildings and crowns that fill cells do not raise it): the plan gradient between cells and
@@ -40,6 +45,9 @@ AREA_CELL = 1.0          # m: plan cells counted as occupied area
 TERRAIN_CELL = 10.0      # m: plan cells whose lowest points stand for the terrain (terrain_grade)
 SAMPLE_POINTS = 200_000  # points the neighbour statistics are measured on
 MAD_TO_SIGMA = 1.4826
+NEAR_COPY_RATIO = 0.2    # a neighbour this much closer than the next is a copy of the point
+NEAR_COPY_SHARE = 0.25   # share of points with such copies beyond which a survey is said to hold copies
+NEAR_COPY_NEIGHBOURS = 4 # plan neighbours looked at: up to 3 copies of a position are seen past
 
 
 def occupied_area(xy: np.ndarray, cell: float = AREA_CELL) -> float:
@@ -102,12 +110,12 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     idx, dist = knn(xyz, k)
     # plan spacing of the full cloud: a sample of fraction f is 1/sqrt(f) sparser
     flat = np.ascontiguousarray(np.column_stack([xyz[:, :2], np.zeros(len(xyz), np.float32)]))
-    nn_plan = knn(flat, 1)[1][:, 0]
+    nn_plan = nearest_past_copies(knn(flat, NEAR_COPY_NEIGHBOURS)[1])
     out["point_spacing_m"] = round(float(np.median(nn_plan) * np.sqrt(len(xyz) / total)), 4)
     if cloud.returns is not None and (cloud.returns[pick, 1] > 1).any() and cloud.returns_problem() is None:
         first = np.flatnonzero(cloud.returns[pick, 0] <= 1)
         if len(first) >= 8:
-            nn_first = knn(np.ascontiguousarray(flat[first]), 1)[1][:, 0]
+            nn_first = nearest_past_copies(knn(np.ascontiguousarray(flat[first]), NEAR_COPY_NEIGHBOURS)[1])
             out["pulse_spacing_m"] = round(float(np.median(nn_first) * np.sqrt(len(xyz) / total)), 4)
     dz = _neighbour_steps(xyz, idx)
     out["height_noise_m"] = round(float(MAD_TO_SIGMA * np.median(np.abs(dz)) / np.sqrt(2.0)), 4)
@@ -124,6 +132,19 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
         out["colour_noise"] = round(float(MAD_TO_SIGMA * np.median(np.abs(grey[b] - grey[a])) / np.sqrt(2.0)), 3)
     log.info("survey estimates: %s", out)
     return out
+
+
+def nearest_past_copies(distances: np.ndarray) -> np.ndarray:
+    """Per point, the distance to its nearest neighbour, from its kNN distances (n, k) sorted
+    ascending; where the survey holds near copies (module docstring), to its nearest neighbour
+    that is not one: past the last neighbour closer than NEAR_COPY_RATIO times the next."""
+    d = np.asarray(distances)
+    copies = np.zeros(len(d), np.int64)
+    for c in range(d.shape[1] - 1):
+        copies[d[:, c] < NEAR_COPY_RATIO * d[:, c + 1]] = c + 1
+    if len(d) == 0 or np.mean(copies > 0) <= NEAR_COPY_SHARE:
+        return d[:, 0]
+    return d[np.arange(len(d)), copies]
 
 
 def _without_copies(out: dict, total: int, copies: float, seen: int, area: float) -> int:
