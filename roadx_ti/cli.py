@@ -20,6 +20,7 @@ from pathlib import Path
 from roadx_ti import __version__, jsonio, units
 from roadx_ti.config import parse_point_count
 from roadx_ti.errors import DataError  # a data mistake: exit 1
+from roadx_ti.memory import LIMIT_VARIABLE
 from roadx_ti.result_dims import DECIDED_BY, RESULT_DIMS, result_dims
 
 EXIT_OK, EXIT_DATA, EXIT_USAGE = 0, 1, 2
@@ -185,6 +186,9 @@ def main(argv: list[str] | None = None) -> int:
     from roadx_ti.io import InputError
 
     previous = _terminate_like_interrupt()
+    # a config's memory_limit reaches local Dask workers through the environment: this run's only
+    # (a second main() in the process, an embedding host's or a test's, ran under the first's limit)
+    limit_before = os.environ.get(LIMIT_VARIABLE)
     from roadx_ti.io.atomic import RENAMED
     RENAMED.clear()          # main() may run more than once in a process (tests, embedding)
     try:
@@ -238,6 +242,10 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_DATA
     finally:
         _restore_signals(previous)
+        if limit_before is None:
+            os.environ.pop(LIMIT_VARIABLE, None)
+        else:
+            os.environ[LIMIT_VARIABLE] = limit_before
 
 
 _RECEIVED: list = []     # termination signals received during this main()

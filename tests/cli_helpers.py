@@ -1,16 +1,21 @@
-"""Helpers for tests that drive the real CLI in a subprocess (python -m roadx_ti ...).
+"""Helpers for tests that drive the real CLI: in a subprocess (python -m roadx_ti ...), or many
+calls of its entry function ``roadx_ti.cli.main`` in one child process (``run_in_one_process``).
 
 Inputs are written with laspy / numpy directly, not through roadx_ti.io, so a reader bug cannot
 hide behind a matching writer bug.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import json
 import os
 import re
 import subprocess
 import sys
 import textwrap
+import threading
+import time
 from pathlib import Path
 
 import laspy
@@ -55,6 +60,91 @@ def start_cli(*args, cwd=None) -> subprocess.Popen:
     """Start ``python -m roadx_ti ARGS`` without waiting (stdout/stderr to pipes)."""
     return subprocess.Popen(cli_command(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, cwd=cwd, env=cli_env())
+
+
+# One child process that runs calls of cli.main, read as JSON lines from stdin, one after another:
+# the imports, Taichi's start and its kernels' loading (seconds per `python -m roadx_ti`) are paid
+# once. Each call's stdout and stderr are its own (redirected); what main() lets out is reported as
+# `raised` (a traceback, for the tests).
+_DRIVER = textwrap.dedent("""\
+    import contextlib, io, json, sys, time
+    from roadx_ti import cli
+    for line in sys.stdin:
+        call = json.loads(line)
+        print(json.dumps({"start": call["id"]}), flush=True)
+        err, out = io.StringIO(), io.StringIO()
+        t0 = time.perf_counter()
+        raised = None
+        try:
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+                code = cli.main(call["argv"])
+        except BaseException as exc:
+            code, raised = None, f"{type(exc).__name__}: {exc}"
+        print(json.dumps({"id": call["id"], "code": code, "raised": raised, "stderr": err.getvalue(),
+                          "stdout": out.getvalue(), "seconds": time.perf_counter() - t0}), flush=True)
+    """)
+
+
+def run_in_one_process(calls: list[dict], *, call_seconds: float, total_seconds: float) -> dict:
+    """Run each call's ``argv`` through ``roadx_ti.cli.main`` in one child process; results by call
+    ``id`` (code, raised, stderr, stdout, seconds). A call that runs past ``call_seconds`` or kills
+    the child is reported as raised (the child is replaced for the calls after it); the whole run
+    past ``total_seconds`` fails the test."""
+    results: dict = {}
+    deadline = time.monotonic() + total_seconds
+    pending = list(calls)
+    while pending:
+        proc = subprocess.Popen([PYTHON, "-c", _DRIVER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True, env=cli_env(), cwd=REPO)
+        lines: list[str] = []
+        feeder = threading.Thread(target=_feed, args=(proc, pending), daemon=True)
+        reader = threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True)
+        errors = threading.Thread(target=lambda: setattr(proc, "stderr_text", proc.stderr.read()), daemon=True)
+        for thread in (feeder, reader, errors):
+            thread.start()
+        current, started, seen, lost = None, 0.0, 0, None
+        try:
+            while len(results) < len(calls):
+                time.sleep(0.02)
+                ended = proc.poll() is not None and not reader.is_alive()   # then every line is read
+                for line in lines[seen:]:
+                    try:
+                        record = json.loads(line)
+                    except ValueError:              # a library's own print, not a record
+                        continue
+                    if "start" in record:
+                        current, started = record["start"], time.monotonic()
+                    else:
+                        results[record["id"]], current = record, None
+                seen = len(lines)
+                if current is not None and time.monotonic() - started > call_seconds:
+                    lost = f"ran past {call_seconds:.0f} s"
+                    break
+                if time.monotonic() > deadline:
+                    raise AssertionError(f"the in-process CLI calls ran past {total_seconds:.0f} s")
+                if ended:
+                    if len(results) < len(calls):
+                        errors.join(5)
+                        lost = f"killed the driver process (exit {proc.returncode}): " \
+                               f"{getattr(proc, 'stderr_text', '')[-2000:]}"
+                    break
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+            proc.wait()
+        if lost is not None and current is not None:
+            results[current] = {"id": current, "code": None, "raised": lost, "stderr": "", "stdout": "",
+                                "seconds": time.monotonic() - started}
+        elif lost is not None:
+            raise AssertionError(f"the in-process CLI driver {lost} between calls")
+        pending = [c for c in calls if c["id"] not in results]
+    return results
+
+
+def _feed(proc: subprocess.Popen, calls: list[dict]) -> None:
+    with contextlib.suppress(OSError):         # the child died: its calls are reported as lost
+        proc.stdin.write("".join(json.dumps(c) + "\n" for c in calls))
+        proc.stdin.close()
 
 
 # Taichi's own stderr lines: its banner and its C++ log ('[W 11/21/26 23:36:59.570 22597] ...')

@@ -140,3 +140,19 @@ def test_empty_inputs_give_empty_results_on_every_arch(arch):
     device: '(0, 3) is not a valid shape for ndarray')."""
     proc = subprocess.run([sys.executable, "-c", EMPTY_INPUTS, arch], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0 and proc.stdout.strip().endswith("ok"), proc.stderr[-2000:]
+
+
+def test_main_run_twice_in_one_process_keeps_no_setting_of_the_first(tmp_path):
+    """cli.main called again in the same process (a host, the test driver): a --memory-limit of one
+    call is not the next call's (it stayed in the environment, and refused every later run)."""
+    from cli_helpers import bumpy_ground, run_in_one_process, write_las, write_tiny_config
+
+    source = write_las(tmp_path / "in.laz", bumpy_ground(3000))
+    config = write_tiny_config(tmp_path)
+    run = ["run", str(config), "--backend", "cpu", "--quiet", "--input", str(source)]
+    calls = [{"id": 0, "argv": [*run, "--output", str(tmp_path / "a.laz"), "--memory-limit", "1MB"]},
+             {"id": 1, "argv": [*run, "--output", str(tmp_path / "b.laz")]}]
+    results = run_in_one_process(calls, call_seconds=120, total_seconds=300)
+    assert results[0]["code"] == 1 and "more than the 1.0 MB" in results[0]["stderr"], results[0]
+    assert results[1]["code"] == 0, results[1]["stderr"]
+    assert (tmp_path / "b.laz").is_file()

@@ -13,10 +13,6 @@ from __future__ import annotations
 import hashlib
 import json
 import struct
-import subprocess
-import sys
-import textwrap
-import threading
 import time
 from pathlib import Path
 
@@ -24,7 +20,7 @@ import laspy
 import numpy as np
 import pytest
 
-from cli_helpers import REPO, cli_env, message_lines, run_cli, write_tiny_config
+from cli_helpers import REPO, message_lines, run_cli, run_in_one_process, write_tiny_config
 from conftest import SHARED_DATA
 
 CASE_SECONDS = 20.0       # one CLI call on a file of at most 14 k points
@@ -109,25 +105,6 @@ def mutations(data: bytes, rng: np.random.Generator) -> list[tuple[str, bytes]]:
     return out
 
 
-DRIVER = textwrap.dedent("""\
-    import contextlib, io, json, sys, time
-    from roadx_ti import cli
-    for line in sys.stdin:
-        case = json.loads(line)
-        print(json.dumps({"start": case["id"]}), flush=True)
-        err, out = io.StringIO(), io.StringIO()
-        t0 = time.perf_counter()
-        raised = None
-        try:
-            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
-                code = cli.main(case["argv"])
-        except BaseException as exc:          # anything main() lets out is a traceback
-            code, raised = None, f"{type(exc).__name__}: {exc}"
-        print(json.dumps({"id": case["id"], "code": code, "raised": raised, "stderr": err.getvalue(),
-                          "stdout": out.getvalue(), "seconds": time.perf_counter() - t0}), flush=True)
-    """)
-
-
 def _digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
@@ -160,39 +137,9 @@ def fuzz_cases(tmp_path_factory):
 
 
 def _drive(calls: list[dict]) -> dict:
-    """Run every call through cli.main in one child process; results by call id. A call that
-    runs longer than CASE_SECONDS kills the child and fails the test naming it."""
-    proc = subprocess.Popen([sys.executable, "-c", DRIVER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=cli_env(), cwd=REPO)
-    feeder = threading.Thread(target=lambda: (proc.stdin.write("".join(json.dumps(c) + "\n" for c in calls)),
-                                              proc.stdin.close()), daemon=True)
-    feeder.start()
-    results, started, lines = {}, {}, []
-    reader = threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True)
-    reader.start()
-    deadline = time.monotonic() + TOTAL_SECONDS
-    seen = 0
-    try:
-        while len(results) < len(calls):
-            time.sleep(0.05)
-            for line in lines[seen:]:
-                record = json.loads(line)
-                if "start" in record:
-                    started[record["start"]] = time.monotonic()
-                else:
-                    results[record["id"]] = record
-            seen = len(lines)
-            running = [i for i in started if i not in results]
-            for i in running:
-                assert time.monotonic() - started[i] < CASE_SECONDS, f"hang: {calls[i]['argv']}"
-            assert time.monotonic() < deadline, f"the fuzz driver ran past {TOTAL_SECONDS} s"
-            if proc.poll() is not None and not reader.is_alive() and len(results) < len(calls):
-                pytest.fail(f"the driver died after {len(results)} calls: {proc.stderr.read()[-2000:]}")
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-        proc.wait()
-    return results
+    """Every call through cli.main in one child process; results by call id (a call past
+    CASE_SECONDS is reported as raised, and fails its check)."""
+    return run_in_one_process(calls, call_seconds=CASE_SECONDS, total_seconds=TOTAL_SECONDS)
 
 
 def _check(case: dict, argv: list, code, stderr: str, stdout: str, raised=None) -> None:
