@@ -268,6 +268,14 @@ def case_road_without_colour_or_intensity(d):
                  check=lambda c: _las_result(c, src))
 
 
+def case_road_with_one_colour_for_every_point(d):
+    """The road pipeline on colour fields holding one grey for every point (a writer's placeholder):
+    a warning that says so (it said the points carry no colour)."""
+    src = write_las(d / "in" / "grey.laz", bumpy_ground(3000, side=30.0), rgb=np.full((3000, 3), 128 * 256))
+    return _demo(d, src, code=0, warning="one colour for every point and no intensity: the road",
+                 check=lambda c: _las_result(c, src))
+
+
 def case_colour_8_and_16_bit(d):
     """The same colours stored 8-bit (0-255) and 16-bit (x 257): identical labels (thresholds are
     in 8-bit units), the colours written back bit-exact, and the grey road patch found."""

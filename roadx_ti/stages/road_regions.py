@@ -349,9 +349,16 @@ class RoadRegions(Stage):
             return StageResult(labels=np.full(n, CLASS_OTHER, np.uint8), info={"skipped": "too few points"})
         xyz = cloud.xyz
         source, colour = colour_channels(cloud)
+        # colour fields holding one value for every point (a writer's placeholder) are no colour
+        # (all-zero LAS colour is read as none)
+        one_colour = cloud.rgb is not None and len(cloud.rgb) > 0 and not cloud.has_color
         if source == "geometry":
-            ctx.log.warning("road_regions: the points carry no colour and no intensity: the road is chosen by "
-                            "kerbs and shape alone, which finds much less of it")
+            ctx.log.warning("road_regions: the points carry %s and no intensity: the road is chosen by "
+                            "kerbs and shape alone, which finds much less of it",
+                            "one colour for every point" if one_colour else "no colour")
+        elif one_colour:
+            ctx.log.warning("road_regions: the points carry one colour for every point: the road is chosen by "
+                            "their intensity instead")
         elif source.endswith(" as grey"):
             ctx.log.warning("road_regions: only the %s channel of the colour varies; it is read as grey",
                             source.split()[0])
