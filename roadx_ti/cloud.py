@@ -26,6 +26,9 @@ def stored_8bit_scale(rgb: np.ndarray) -> int:
     return 257
 
 
+RETURNS_USABLE = "usable"     # Cloud.returns_verdict of returns that tell pulses apart (or none recorded)
+
+
 @dataclass
 class Cloud:
     xyz: np.ndarray                         # (n, 3) float32, world - origin
@@ -43,6 +46,10 @@ class Cloud:
     # (io.read(..., keep_records=False)): the writer streams them from there
     records_file: str = ""
     source: str = ""                        # path or description, for messages
+    # returns_problem's verdict on the whole survey, carried into every subset and tile (None: judge
+    # this cloud's own returns): "usable" or the problem. Judged on each stage's points or tile, a
+    # file with 0.8 % bad return numbers crossed the 1 % line in its vegetation or in one tile
+    returns_verdict: str | None = None
 
     def __post_init__(self):
         self.xyz = np.ascontiguousarray(self.xyz, dtype=np.float32)
@@ -103,9 +110,12 @@ class Cloud:
         return numbers of 0 or above their pulse's number of returns on more than 1 % of the points
         (LAS allows 1 to the number of returns; a writer that left them 0 made every point an
         earlier return of its pulse, foliage to the roof pipeline), or one number of returns above
-        1 on every point (a constant carries no pulse)."""
+        1 on every point (a constant carries no pulse). The survey's verdict where one is set
+        (returns_verdict)."""
         if self.returns is None or not self.n:
             return None
+        if self.returns_verdict is not None:
+            return None if self.returns_verdict == RETURNS_USABLE else self.returns_verdict
         number, count = self.returns[:, 0], self.returns[:, 1]
         if not count.any():
             return None      # no returns recorded (photogrammetry, converted clouds): nothing to read

@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from roadx_ti.cloud import Cloud
+from roadx_ti.estimates import RETURNS_VERDICT
 from roadx_ti.ordering import canonical_order
 from roadx_ti.stages import stage_class
 from roadx_ti.stages.base import CLASS_OTHER, DATA_EDGE, ESTIMATES, SAMPLED_SHARE, StageContext, check_order
@@ -127,6 +128,10 @@ def _run(cloud, order, stages, ctx, truth, default_class, progress, target_class
         from roadx_ti.estimates import measure
         ctx.facts[ESTIMATES] = measure(whole if not repeated.any() else whole.subset(np.flatnonzero(~repeated)),
                                        distinct=True)
+    verdict = ctx.facts[ESTIMATES].get(RETURNS_VERDICT)
+    if verdict is not None and cloud.returns is not None:
+        # the survey's verdict on its return numbers, for every stage's points (and every tile)
+        cloud, whole = replace(cloud, returns_verdict=verdict), replace(whole, returns_verdict=verdict)
     if any(getattr(stage, "uses_data_edge", False) for stage in stages):
         # the edge of this run's points (a tile's own window), not the survey's
         from roadx_ti.footprint import data_edge

@@ -33,7 +33,7 @@ from cli_helpers import (CONFIGS, DEMO_FAST, bumpy_ground, error_line, partial_f
                          run_in_one_process, sha256, synth, write_las, write_tiny_config)
 
 ROAD_CLASSES = {1, 2, 6, 11}
-SUBPROCESS_EVERY = 8         # every 8th case (by name) runs through `python -m roadx_ti` too
+SUBPROCESS_EVERY = 16        # every 16th case (by name) runs through `python -m roadx_ti` too
 CALL_SECONDS = 300.0         # one case in the in-process driver (a cold kernel cache compiles in it)
 
 
@@ -683,8 +683,9 @@ def case_memory_estimate_over_the_limit(d):
     """--memory-limit 340M for 200,000 points through the ground pipeline (estimate 351 MB with its
     margin): exit 1 before reading the points, one line suggesting a tile size."""
     src = write_las(d / "in" / "big.laz", bumpy_ground(200_000, side=150.0))
+    # (the memory limits are of a process, which counts what it holds already: cases of their own)
     return _run(CONFIGS / "ground.yaml", d, src, extra=["--memory-limit", "340M"],
-                message="run in tiles (--tile-size")
+                message="run in tiles (--tile-size", process=True)
 
 
 def case_memory_estimate_runs_in_tiles(d):
@@ -696,7 +697,7 @@ def case_memory_estimate_runs_in_tiles(d):
         summary = json.loads(c.output.with_suffix(".summary.json").read_text())
         assert summary["tiling"]["tiles"] > 1
     return _run(CONFIGS / "ground.yaml", d, src, extra=["--memory-limit", "340M", "--set", "tiling.auto=true"],
-                code=0, warning="running in tiles of", check=check)
+                code=0, warning="running in tiles of", check=check, process=True)
 
 
 def case_unreachable_scheduler(d):
@@ -1431,7 +1432,7 @@ def case_memory_limit_below_one_tile(d):
     particles allowed')."""
     src = write_las(d / "in" / "ground.laz", bumpy_ground(3000, side=60.0))
     return _run(CONFIGS / "ground.yaml", d, src, code=2, extra=["--memory-limit", "200M", "--tile-size", "30"],
-                message="--memory-limit 200.0 MB: a tile's process needs at least")
+                message="--memory-limit 200.0 MB: a tile's process needs at least", process=True)
 
 
 def case_tile_size_inf_is_the_untiled_run(d):

@@ -1328,3 +1328,39 @@ def test_a_crown_top_seen_through_is_no_roof(ti_arch, with_returns):
     else:
         assert building[part == 2].mean() > 0.9
         assert result.info["dropped_as_seen_through"] == 0
+
+
+def test_the_return_numbers_are_judged_once_for_the_survey(caplog):
+    """Review point 4: returns_problem was judged on each stage's points (and each tile): a survey
+    with 0.8 % of its return numbers 0, all in a crown, crossed the 1 % line in the points that
+    reach roof_growing (the ground gone), which then dropped the returns, with a warning. Judged once
+    over the input, the verdict holds for every stage, and the labels are those of the right numbers."""
+    from roadx_ti import config, pipelines
+    from roadx_ti.cloud import Cloud
+    from roadx_ti.stages.base import StageContext
+    from tests.conftest import REPO, switch_backend
+
+    switch_backend("cpu")
+    xyz, _, part = house_and_tree_scene()
+    rng = np.random.default_rng(4)
+    side = 40.0
+    ground = np.column_stack([rng.uniform(-15, 25, int(12 * side * side)), rng.uniform(-15, 25, int(12 * side * side)),
+                              rng.normal(0, 0.02, int(12 * side * side))])
+    world = np.vstack([xyz, ground])
+    returns = np.ones((len(world), 2), np.uint8)
+    crown = np.flatnonzero(part == 4)
+    returns[crown] = [1, 2]                       # first of two returns: foliage seen through
+    broken = returns.copy()
+    zeroed = crown[: int(0.008 * len(world))]
+    broken[zeroed, 0] = 0                         # below the count either way: foliage still
+    assert 0 < len(zeroed) < 0.01 * len(world)
+    cfg = config.load(REPO / "configs" / "roof_als.yaml")
+
+    def run(r):
+        cloud = Cloud.from_world(world, origin=np.zeros(3), returns=r)
+        return pipelines.run(cloud, pipelines.build_stages(cfg.stage_list()), ctx=StageContext(seed=0))
+    caplog.set_level("WARNING", logger="roadx_ti")
+    got = run(broken)
+    assert "return numbers are not used" not in caplog.text
+    assert got.estimates["returns"] == "usable"
+    np.testing.assert_array_equal(got.classification, run(returns).classification)
