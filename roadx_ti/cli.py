@@ -856,6 +856,7 @@ def _same_points(pred, truth, pred_name, truth_name) -> None:
 # -------------------------------------------------------------------------------------- info
 def cmd_info(args) -> int:
     from roadx_ti import io
+    from roadx_ti.io import InputError
 
     from roadx_ti.io.describe import text
     from roadx_ti.tiling.catalogs import folder_files, pattern_files
@@ -869,12 +870,24 @@ def cmd_info(args) -> int:
             raise UsageError(f"{given}: no such file")
         for path in [given] if matches is None else pattern_files(given, matches):
             files.extend(folder_files(Path(path)) if Path(path).is_dir() else [path])
-    infos = [io.info(str(f)) for f in files]
+    infos, failed = [], []
+    for f in files:
+        try:
+            infos.append(io.info(str(f)))
+        except (InputError, DataError) as exc:
+            if len(files) == 1:
+                raise
+            # a folder or pattern: every file is described, a bad one by its error (lasinfo goes on
+            # too); it said the first bad file's error alone
+            failed.append(str(exc))
+            infos.append({"path": str(f), "error": str(exc)})
     if args.text:
         print("\n\n".join(text(info) for info in infos))
     else:
         print(jsonio.dumps(infos[0] if len(infos) == 1 else infos, indent=2))
-    return EXIT_OK
+    for message in failed:
+        print(f"roadx_ti: {message}", file=sys.stderr)
+    return EXIT_DATA if failed else EXIT_OK
 
 
 # ---------------------------------------------------------------------------------- accuracy

@@ -79,3 +79,21 @@ def test_several_files_a_folder_and_a_pattern(tmp_path):
     proc = run_cli("info", str(tmp_path / "*.ply"))
     assert proc.returncode == 2          # a usage mistake, as run says it
     assert proc.stderr.strip().splitlines() == [f"roadx_ti: {tmp_path / '*.ply'}: no file matches the pattern"]
+
+
+def test_a_folder_with_a_bad_file_describes_every_file(tmp_path):
+    """info over a folder holding a truncated file: every file is described, the bad one by its
+    error, which is also one stderr line; exit 1 (it stopped at the bad file, describing none)."""
+    rng = np.random.default_rng(2)
+    for name in ("a.las", "c.las"):
+        write_las(tmp_path / name, np.column_stack([rng.uniform(0, 10, 100) + 1000, rng.uniform(0, 10, 100), rng.uniform(0, 1, 100)]))
+    (tmp_path / "b.las").write_bytes((tmp_path / "a.las").read_bytes()[:300])
+    proc = run_cli("info", str(tmp_path))
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+    listed = json.loads(proc.stdout)
+    assert [d["path"].rsplit("/", 1)[-1] for d in listed] == ["a.las", "b.las", "c.las"]
+    assert listed[0]["point_count"] == 100 and listed[2]["point_count"] == 100 and "error" in listed[1]
+    lines = [line for line in proc.stderr.splitlines() if line.startswith("roadx_ti: ")]
+    assert len(lines) == 1 and "b.las" in lines[0], proc.stderr
+    text = run_cli("info", "--text", str(tmp_path))
+    assert text.returncode == 1 and "error" in text.stdout and text.stdout.count("file") >= 3

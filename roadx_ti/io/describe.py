@@ -80,7 +80,9 @@ def _field_text(f: dict) -> str:
 
 
 def text(info: dict) -> str:
-    """``info``'s dict as lines for a person."""
+    """``info``'s dict as lines for a person (a file that could not be read: its error)."""
+    if "error" in info:
+        return f"file   {info['path']}\nerror  {info['error']}"
     rows = [("file", info["path"])]
     fmt = info["format"]
     if info.get("point_format") is not None:
