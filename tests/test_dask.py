@@ -297,14 +297,24 @@ def test_a_server_that_is_not_a_dask_scheduler_is_named_at_once(greeting):
     server.close()
 
 
+def _synthetic_street(path: Path, points: int, seed: int, density: float | None = None) -> Path:
+    """The scene `python -m roadx_ti synth --kind uav-road` writes, made in this process (a CLI
+    start less)."""
+    from roadx_ti import io, synthetic
+
+    cloud = synthetic.generate("uav-road", points, seed, density=density)
+    io.write(path, cloud, classification=cloud.classification)
+    return path
+
+
 def test_ctrl_c_during_a_run_with_workers_says_one_line(tmp_path):
     """A terminal's Ctrl-C reaches every process of the group: the workers used to print tracebacks
     and Dask's shutdown warnings (3 to 36 lines); now the CLI's one line, exit 130, the previous
     output kept and no scratch records left."""
     import re as _re
 
-    from cli_helpers import cli_command, cli_env, message_lines, sha256, synth, write_las, bumpy_ground
-    src = synth(tmp_path / "street.laz", "150k", seed=2)
+    from cli_helpers import cli_command, cli_env, message_lines, sha256, write_las, bumpy_ground
+    src = _synthetic_street(tmp_path / "street.laz", 150_000, seed=2)
     out = tmp_path / "out" / "r.laz"
     out.parent.mkdir()
     write_las(out, bumpy_ground(500))
@@ -336,9 +346,7 @@ def test_stage_warnings_of_the_workers_are_the_clis_lines_each_once_per_worker(t
     kerbs): the workers said it once per tile through Python's last-resort handler, without the
     'roadx_ti:' prefix (12 lines for 16 tiles); now once per worker, prefixed."""
     from cli_helpers import run_cli
-    src = tmp_path / "street.laz"
-    assert run_cli("synth", "--kind", "uav-road", "--points", "60k", "--seed", "3", "--density", "20",
-                   "-o", src).returncode == 0
+    src = _synthetic_street(tmp_path / "street.laz", 60_000, seed=3, density=20.0)
     proc = run_cli("run", Path(__file__).parents[1] / "configs" / "road_uav.yaml", "--backend", "cpu", "--quiet",
                    "--input", src, "--output", tmp_path / "r.laz", "--workers", "2", "--tile-size", "25")
     assert proc.returncode == 0, proc.stderr
