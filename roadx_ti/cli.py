@@ -191,6 +191,8 @@ def main(argv: list[str] | None = None) -> int:
     limit_before = os.environ.get(LIMIT_VARIABLE)
     from roadx_ti.io.atomic import RENAMED
     RENAMED.clear()          # main() may run more than once in a process (tests, embedding)
+    if "roadx_ti.io.las" in sys.modules:     # (not imported for it: a refused run stays light)
+        sys.modules["roadx_ti.io.las"].forget_warnings()
     try:
         with warnings.catch_warnings():
             # numpy's RuntimeWarning / UserWarning on absurd values (a header offset of 1e308, an

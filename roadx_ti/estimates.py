@@ -24,7 +24,7 @@ tile), logged, and written to the summary JSON:
   closer than NEAR_COPY_RATIO times the next one (about 4 % of points scattered at random do), the
   spacings are measured to the nearest neighbour past those copies (the copies' 1 cm spacing made
   every radius and cell derived from it 1 cm, and the roof pipeline found no roof);
-- ``returns`` (where the input has return numbers): ``usable``, or why they cannot tell pulses
+- ``returns`` (where the input records return numbers): ``usable``, or why they cannot tell pulses
   apart (Cloud.returns_problem), judged once for the survey and used by every subset and tile;
 - ``terrain_grade``: median grade of the terrain (rise over run), from the lowest sample point of
   each TERRAIN_CELL plan cell (bar the lowest 1 %: low noise) lowered to its 5 x 5 cells' lowest
@@ -89,8 +89,9 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     area = occupied_area(cloud.xyz[:, :2]) if area is None else float(area)
     out = {"points": total, "plan_area_m2": round(area, 1),
            "density_per_m2": round(total / area, 3) if area else 0.0}
-    if cloud.returns is not None and n:
-        # once for the survey (a tile or a stage's points judged alone could cross the line)
+    if cloud.returns is not None and n and cloud.returns[:, 1].any():
+        # once for the survey (a tile or a stage's points judged alone could cross the line); none
+        # recorded (all 0): no verdict, nothing to read in any subset either
         out[RETURNS_VERDICT] = cloud.returns_problem() or RETURNS_USABLE
     if n < 8:
         return out

@@ -11,6 +11,7 @@ import hashlib
 import json
 import os
 import re
+import signal
 import subprocess
 import sys
 import textwrap
@@ -66,23 +67,31 @@ def start_cli(*args, cwd=None) -> subprocess.Popen:
 # the imports, Taichi's start and its kernels' loading (seconds per `python -m roadx_ti`) are paid
 # once. Each call's stdout and stderr are its own (redirected); what main() lets out is reported as
 # `raised` (a traceback, for the tests).
+# Its records are lines that start with RECORD on its stdout (what a library writes to the file
+# descriptor itself may precede one on its line); SystemExit is main()'s exit code (argparse's usage
+# errors, --help).
+RECORD = "\x1eroadx_ti-driver "
 _DRIVER = textwrap.dedent("""\
     import contextlib, io, json, sys, time
     from roadx_ti import cli
+    def record(value):
+        print(%r + json.dumps(value), flush=True)
     for line in sys.stdin:
         call = json.loads(line)
-        print(json.dumps({"start": call["id"]}), flush=True)
+        record({"start": call["id"]})
         err, out = io.StringIO(), io.StringIO()
         t0 = time.perf_counter()
         raised = None
         try:
             with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
                 code = cli.main(call["argv"])
+        except SystemExit as exc:
+            code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
         except BaseException as exc:
             code, raised = None, f"{type(exc).__name__}: {exc}"
-        print(json.dumps({"id": call["id"], "code": code, "raised": raised, "stderr": err.getvalue(),
-                          "stdout": out.getvalue(), "seconds": time.perf_counter() - t0}), flush=True)
-    """)
+        record({"id": call["id"], "code": code, "raised": raised, "stderr": err.getvalue(),
+                "stdout": out.getvalue(), "seconds": time.perf_counter() - t0})
+    """ % RECORD)
 
 
 def run_in_one_process(calls: list[dict], *, call_seconds: float, total_seconds: float) -> dict:
@@ -94,24 +103,27 @@ def run_in_one_process(calls: list[dict], *, call_seconds: float, total_seconds:
     deadline = time.monotonic() + total_seconds
     pending = list(calls)
     while pending:
+        # its own session: a kill takes the processes it started too (Dask workers)
         proc = subprocess.Popen([PYTHON, "-c", _DRIVER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True, env=cli_env(), cwd=REPO)
+                                stderr=subprocess.PIPE, text=True, env=cli_env(), cwd=REPO,
+                                start_new_session=True)
         lines: list[str] = []
         feeder = threading.Thread(target=_feed, args=(proc, pending), daemon=True)
         reader = threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True)
         errors = threading.Thread(target=lambda: setattr(proc, "stderr_text", proc.stderr.read()), daemon=True)
         for thread in (feeder, reader, errors):
             thread.start()
-        current, started, seen, lost = None, 0.0, 0, None
+        current, started, seen, lost, done_before = None, 0.0, 0, None, len(results)
         try:
             while len(results) < len(calls):
                 time.sleep(0.02)
-                ended = proc.poll() is not None and not reader.is_alive()   # then every line is read
+                ended = proc.poll() is not None
+                if ended:
+                    reader.join(2)         # what it wrote (a process it started may hold the pipe)
                 for line in lines[seen:]:
-                    try:
-                        record = json.loads(line)
-                    except ValueError:              # a library's own print, not a record
-                        continue
+                    if RECORD not in line:
+                        continue            # a library's own print
+                    record = json.loads(line.rsplit(RECORD, 1)[1])
                     if "start" in record:
                         current, started = record["start"], time.monotonic()
                     else:
@@ -129,15 +141,15 @@ def run_in_one_process(calls: list[dict], *, call_seconds: float, total_seconds:
                                f"{getattr(proc, 'stderr_text', '')[-2000:]}"
                     break
         finally:
-            if proc.poll() is None:
-                proc.kill()
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
         if lost is not None and current is not None:
             results[current] = {"id": current, "code": None, "raised": lost, "stderr": "", "stdout": "",
                                 "seconds": time.monotonic() - started}
-        elif lost is not None:
-            raise AssertionError(f"the in-process CLI driver {lost} between calls")
-        pending = [c for c in calls if c["id"] not in results]
+        elif lost is not None and len(results) == done_before:
+            raise AssertionError(f"the in-process CLI driver {lost} before any call")
+        pending = [c for c in calls if c["id"] not in results]      # (a death between calls: again)
     return results
 
 

@@ -33,7 +33,7 @@ from cli_helpers import (CONFIGS, DEMO_FAST, bumpy_ground, error_line, partial_f
                          run_in_one_process, sha256, synth, write_las, write_tiny_config)
 
 ROAD_CLASSES = {1, 2, 6, 11}
-SUBPROCESS_EVERY = 16        # every 16th case (by name) runs through `python -m roadx_ti` too
+SUBPROCESS_EVERY = 16        # every 16th case (by name) runs through `python -m roadx_ti` instead
 CALL_SECONDS = 300.0         # one case in the in-process driver (a cold kernel cache compiles in it)
 
 
@@ -1505,7 +1505,9 @@ def catalogue(request, tmp_path_factory):
         case = build(folder)
         case.hashes = {p.resolve(): sha256(p) for p in (folder / "in").rglob("*") if p.is_file()}
         cases[name] = case
-    by_process = {name for k, name in enumerate(cases) if cases[name].process or k % SUBPROCESS_EVERY == 0}
+    # by the case's place in the whole catalogue: a case selected alone (-k) runs as in the suite
+    everywhere = list(CASES)
+    by_process = {name for name in cases if cases[name].process or everywhere.index(name) % SUBPROCESS_EVERY == 0}
     calls = [{"id": name, "argv": [str(a) for a in case.args]} for name, case in cases.items()
              if name not in by_process]
     calls += [{"id": f"reference {name}", "argv": [str(a) for a in case.reference]}

@@ -3,6 +3,7 @@ import subprocess
 import sys
 import textwrap
 
+import numpy as np
 import pytest
 
 from roadx_ti.kernels.taichi_compat import DISTRIBUTION
@@ -156,3 +157,23 @@ def test_main_run_twice_in_one_process_keeps_no_setting_of_the_first(tmp_path):
     assert results[0]["code"] == 1 and "more than the 1.0 MB" in results[0]["stderr"], results[0]
     assert results[1]["code"] == 0, results[1]["stderr"]
     assert (tmp_path / "b.laz").is_file()
+
+
+def test_main_run_twice_on_one_file_warns_about_it_each_time(tmp_path):
+    """A file's warnings (points flagged withheld) are said by every main() that reads it, not
+    only by the first in the process; a usage mistake is main()'s exit 2 there too."""
+    import laspy
+
+    from cli_helpers import bumpy_ground, run_in_one_process, write_las, write_tiny_config
+
+    source = write_las(tmp_path / "in.las", bumpy_ground(3000))
+    las = laspy.read(source)
+    las.withheld = (np.arange(3000) % 2).astype(np.uint8)
+    las.write(source)
+    run = ["run", str(write_tiny_config(tmp_path)), "--backend", "cpu", "--quiet", "--input", str(source)]
+    calls = [{"id": k, "argv": [*run, "--output", str(tmp_path / f"{k}.laz")]} for k in range(2)]
+    calls.append({"id": 2, "argv": [*run, "--no-such-option"]})
+    results = run_in_one_process(calls, call_seconds=120, total_seconds=300)
+    for k in range(2):
+        assert results[k]["code"] == 0 and "1500 of 3000 points are flagged withheld" in results[k]["stderr"], results[k]
+    assert results[2]["code"] == 2 and results[2]["raised"] is None, results[2]

@@ -55,6 +55,11 @@ EXTRA_BYTES_STRUCT = 192    # bytes per dimension of the Extra Bytes VLR
 _WARNED: set = set()      # (kind, file) of the warnings said already in this process
 
 
+def forget_warnings() -> None:
+    """warn_once says its warnings again (a new CLI run in the same process)."""
+    _WARNED.clear()
+
+
 def warn_once(key, message: str, *args) -> None:
     """A warning about a file said once per ``key``: the header is checked at every read of a file,
     and a streamed write builds its header for every chunk."""
