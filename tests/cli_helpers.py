@@ -69,10 +69,11 @@ def start_cli(*args, cwd=None) -> subprocess.Popen:
 # `raised` (a traceback, for the tests).
 # Its records are lines that start with RECORD on its stdout (what a library writes to the file
 # descriptor itself may precede one on its line); SystemExit is main()'s exit code (argparse's usage
-# errors, --help).
+# errors, --help). A call's stderr is what it printed and, after it, what reached file descriptor 2
+# itself during the call (Taichi's C++ log, processes it started), as a process's stderr has it.
 RECORD = "\x1eroadx_ti-driver "
 _DRIVER = textwrap.dedent("""\
-    import contextlib, io, json, sys, time
+    import contextlib, io, json, os, sys, tempfile, time
     from roadx_ti import cli
     def record(value):
         print(%r + json.dumps(value), flush=True)
@@ -82,14 +83,22 @@ _DRIVER = textwrap.dedent("""\
         err, out = io.StringIO(), io.StringIO()
         t0 = time.perf_counter()
         raised = None
-        try:
-            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
-                code = cli.main(call["argv"])
-        except SystemExit as exc:
-            code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-        except BaseException as exc:
-            code, raised = None, f"{type(exc).__name__}: {exc}"
-        record({"id": call["id"], "code": code, "raised": raised, "stderr": err.getvalue(),
+        with tempfile.TemporaryFile() as fd2:
+            saved = os.dup(2)
+            os.dup2(fd2.fileno(), 2)
+            try:
+                with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+                    code = cli.main(call["argv"])
+            except SystemExit as exc:
+                code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+            except BaseException as exc:
+                code, raised = None, f"{type(exc).__name__}: {exc}"
+            finally:
+                os.dup2(saved, 2)
+                os.close(saved)
+            fd2.seek(0)
+            written = fd2.read().decode("utf-8", "replace")
+        record({"id": call["id"], "code": code, "raised": raised, "stderr": err.getvalue() + written,
                 "stdout": out.getvalue(), "seconds": time.perf_counter() - t0})
     """ % RECORD)
 
