@@ -23,7 +23,10 @@ tile), logged, and written to the summary JSON:
   neighbour its own copy): where more than NEAR_COPY_SHARE of the sample's points have neighbours
   closer than NEAR_COPY_RATIO times the next one (about 4 % of points scattered at random do), the
   spacings are measured to the nearest neighbour past those copies (the copies' 1 cm spacing made
-  every radius and cell derived from it 1 cm, and the roof pipeline found no roof);
+  every radius and cell derived from it 1 cm, and the roof pipeline found no roof). A sample of a
+  larger cloud rarely draws a copy with its twin: there the copies are counted among every point
+  of a few windows of the cloud (copies_in_windows), and the sample's spacing past copies is
+  scaled by the share of positions it holds;
 - ``returns`` (where the input records return numbers): ``usable``, or why they cannot tell pulses
   apart (Cloud.returns_problem), judged once for the survey and used by every subset and tile;
 - ``terrain_grade``: median grade of the terrain (rise over run), from the lowest sample point of
@@ -51,6 +54,8 @@ MAD_TO_SIGMA = 1.4826
 NEAR_COPY_RATIO = 0.2    # a neighbour this much closer than the next is a copy of the point
 NEAR_COPY_SHARE = 0.25   # share of points with such copies beyond which a survey is said to hold copies
 NEAR_COPY_NEIGHBOURS = 4 # plan neighbours looked at: up to 3 copies of a position are seen past
+NEAR_COPY_WINDOWS = 4    # windows of a large cloud whose every point near copies are looked for among
+NEAR_COPY_WINDOW_POINTS = 5_000   # points of one such window, on average
 
 
 def occupied_area(xy: np.ndarray, cell: float = AREA_CELL) -> float:
@@ -117,13 +122,21 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     idx, dist = knn(xyz, k)
     # plan spacing of the full cloud: a sample of fraction f is 1/sqrt(f) sparser
     flat = np.ascontiguousarray(np.column_stack([xyz[:, :2], np.zeros(len(xyz), np.float32)]))
-    nn_plan = nearest_past_copies(knn(flat, NEAR_COPY_NEIGHBOURS)[1])
-    out["point_spacing_m"] = round(float(np.median(nn_plan) * np.sqrt(len(xyz) / total)), 4)
+    # plan spacing of the full cloud: a sample of fraction f is 1/sqrt(f) sparser; where the cloud
+    # holds m near copies per position, its positions past copies are 1 / sqrt(1 - (1 - f)^m)
+    # sparser (a position is in the sample with any of its copies)
+    copies = copies_in_windows(cloud, total / area if area else 0.0, seed) \
+        if survey_points is None and len(xyz) < n else 1.0
+    f = len(xyz) / total
+    scale = np.sqrt(f) if copies <= 1.0 else np.sqrt(1.0 - (1.0 - f) ** copies)
+    nn_plan = nearest_past_copies(knn(flat, NEAR_COPY_NEIGHBOURS)[1], always=copies > 1.0)
+    out["point_spacing_m"] = round(float(np.median(nn_plan) * scale), 4)
     if cloud.returns is not None and (cloud.returns[pick, 1] > 1).any() and cloud.returns_problem() is None:
         first = np.flatnonzero(cloud.returns[pick, 0] <= 1)
         if len(first) >= 8:
-            nn_first = nearest_past_copies(knn(np.ascontiguousarray(flat[first]), NEAR_COPY_NEIGHBOURS)[1])
-            out["pulse_spacing_m"] = round(float(np.median(nn_first) * np.sqrt(len(xyz) / total)), 4)
+            nn_first = nearest_past_copies(knn(np.ascontiguousarray(flat[first]), NEAR_COPY_NEIGHBOURS)[1],
+                                           always=copies > 1.0)
+            out["pulse_spacing_m"] = round(float(np.median(nn_first) * scale), 4)
     dz = _neighbour_steps(xyz, idx)
     out["height_noise_m"] = round(float(MAD_TO_SIGMA * np.median(np.abs(dz)) / np.sqrt(2.0)), 4)
     grade = terrain_grade(xyz)
@@ -141,17 +154,47 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     return out
 
 
-def nearest_past_copies(distances: np.ndarray) -> np.ndarray:
+def copies_in_windows(cloud: Cloud, density: float, seed: int) -> float:
+    """Records per position where the cloud holds near copies (module docstring), counted among
+    every point of NEAR_COPY_WINDOWS square plan windows (about NEAR_COPY_WINDOW_POINTS points
+    each, centred on points drawn at random): a uniform sample of a larger cloud holds a copy with
+    its twin rarely. 1.0 where the windows hold none."""
+    from roadx_ti.kernels.neighbors import knn
+
+    if density <= 0:
+        return 1.0
+    half = 0.5 * np.sqrt(NEAR_COPY_WINDOW_POINTS / density)
+    centres = cloud.xyz[np.random.default_rng(seed + 1).choice(cloud.n, NEAR_COPY_WINDOWS, replace=False)]
+    inside = np.zeros(cloud.n, bool)
+    for cx, cy, _ in centres:
+        inside |= (np.abs(cloud.xyz[:, 0] - cx) <= half) & (np.abs(cloud.xyz[:, 1] - cy) <= half)
+    index = np.flatnonzero(inside)
+    if len(index) <= 2 * NEAR_COPY_NEIGHBOURS:
+        return 1.0
+    flat = np.ascontiguousarray(np.column_stack([cloud.xyz[index, :2], np.zeros(len(index), np.float32)]))
+    copies = _copies_per_point(np.asarray(knn(flat, NEAR_COPY_NEIGHBOURS)[1]))
+    return float(np.mean(1 + copies)) if np.mean(copies > 0) > NEAR_COPY_SHARE else 1.0
+
+
+def nearest_past_copies(distances: np.ndarray, always: bool = False) -> np.ndarray:
     """Per point, the distance to its nearest neighbour, from its kNN distances (n, k) sorted
-    ascending; where the survey holds near copies (module docstring), to its nearest neighbour
-    that is not one: past the last neighbour closer than NEAR_COPY_RATIO times the next."""
+    ascending; where the survey holds near copies (module docstring; ``always``: known to), to its
+    nearest neighbour that is not one: past the last neighbour closer than NEAR_COPY_RATIO times
+    the next."""
     d = np.asarray(distances)
+    copies = _copies_per_point(d)
+    if len(d) == 0 or (not always and np.mean(copies > 0) <= NEAR_COPY_SHARE):
+        return d[:, 0]
+    return d[np.arange(len(d)), copies]
+
+
+def _copies_per_point(d: np.ndarray) -> np.ndarray:
+    """Per row of sorted kNN distances, how many neighbours come before its last gap of more
+    than 1 / NEAR_COPY_RATIO (0: none)."""
     copies = np.zeros(len(d), np.int64)
     for c in range(d.shape[1] - 1):
         copies[d[:, c] < NEAR_COPY_RATIO * d[:, c + 1]] = c + 1
-    if len(d) == 0 or np.mean(copies > 0) <= NEAR_COPY_SHARE:
-        return d[:, 0]
-    return d[np.arange(len(d)), copies]
+    return copies
 
 
 def _without_copies(out: dict, total: int, copies: float, seen: int, area: float) -> int:
