@@ -121,7 +121,7 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     k = min(8, len(xyz) - 1)
     idx, dist = knn(xyz, k)
     # plan spacing of the full cloud: a sample of fraction f is 1/sqrt(f) sparser
-    flat = np.ascontiguousarray(np.column_stack([xyz[:, :2], np.zeros(len(xyz), np.float32)]))
+    flat = plan_points(xyz)
     # plan spacing of the full cloud: a sample of fraction f is 1/sqrt(f) sparser; where the cloud
     # holds m near copies per position, its positions past copies are 1 / sqrt(1 - (1 - f)^m)
     # sparser (a position is in the sample with any of its copies)
@@ -154,6 +154,12 @@ def measure(cloud: Cloud, sample_points: int = SAMPLE_POINTS, seed: int = 0, *, 
     return out
 
 
+def plan_points(xyz: np.ndarray) -> np.ndarray:
+    """The points' x, y with z = 0 (float32 (n, 3), contiguous): kNN in plan."""
+    xyz = np.asarray(xyz)
+    return np.ascontiguousarray(np.column_stack([xyz[:, :2], np.zeros(len(xyz), np.float32)]), np.float32)
+
+
 def copies_in_windows(cloud: Cloud, density: float, seed: int) -> float:
     """Records per position where the cloud holds near copies (module docstring), counted among
     every point of NEAR_COPY_WINDOWS square plan windows (about NEAR_COPY_WINDOW_POINTS points
@@ -171,7 +177,7 @@ def copies_in_windows(cloud: Cloud, density: float, seed: int) -> float:
     index = np.flatnonzero(inside)
     if len(index) <= 2 * NEAR_COPY_NEIGHBOURS:
         return 1.0
-    flat = np.ascontiguousarray(np.column_stack([cloud.xyz[index, :2], np.zeros(len(index), np.float32)]))
+    flat = plan_points(cloud.xyz[index])
     copies = _copies_per_point(np.asarray(knn(flat, NEAR_COPY_NEIGHBOURS)[1]))
     return float(np.mean(1 + copies)) if np.mean(copies > 0) > NEAR_COPY_SHARE else 1.0
 

@@ -40,7 +40,7 @@ from pydantic import Field, field_validator
 
 from roadx_ti.chunks import over_chunks
 from roadx_ti.cloud import Cloud
-from roadx_ti.estimates import MAD_TO_SIGMA
+from roadx_ti.estimates import MAD_TO_SIGMA, plan_points
 from roadx_ti.kernels.regions import MAX_ROW
 from roadx_ti.road_graph import Weights, kerbless_road, label_road
 from roadx_ti.stages.base import CLASS_OTHER, CLASS_ROAD, MIN_BUFFER, MIN_CELL, Stage, StageContext, StageOptions, StageResult
@@ -227,7 +227,7 @@ def above_road_surface(xyz, gradient, is_road, k: int, tolerance: float):
     if k < 3:
         return is_road, 0
     part = np.ascontiguousarray(xyz[road])
-    flat = np.ascontiguousarray(np.column_stack([part[:, :2], np.zeros(len(part), np.float32)]))
+    flat = plan_points(part)
     neighbours, distance = knn(flat, k)
     # no neighbours from far off (a small road piece, or another level of a bridge): at most
     # three times the typical reach of the k nearest

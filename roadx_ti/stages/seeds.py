@@ -110,12 +110,12 @@ def _with_isolated(n, k, rest, found):
 def _spacing_of(xyz) -> float:
     """Median nearest-neighbour distance in plan of ``xyz`` (m), past near copies as the survey's
     spacing is (roadx_ti.estimates), 0 for fewer than 2 points."""
-    from roadx_ti.estimates import NEAR_COPY_NEIGHBOURS, nearest_past_copies
+    from roadx_ti.estimates import NEAR_COPY_NEIGHBOURS, nearest_past_copies, plan_points
     from roadx_ti.kernels.neighbors import knn
 
     if len(xyz) < 2:
         return 0.0
-    flat = np.ascontiguousarray(np.column_stack([xyz[:, :2], np.zeros(len(xyz), np.float32)]), np.float32)
+    flat = plan_points(xyz)
     k = min(NEAR_COPY_NEIGHBOURS, len(xyz) - 1)
     return float(np.median(nearest_past_copies(np.asarray(knn(flat, k)[1]))))
 
